@@ -1,0 +1,1 @@
+"""Baseline agents, training and the ``food-fetch`` command line."""
