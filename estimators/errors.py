@@ -1,0 +1,78 @@
+"""Errors and input validation shared by the estimators.
+
+Every estimator either returns a number it can stand behind, flags it ``reliable=False`` with a
+warning that says why, or raises :class:`EstimationError` with a message naming the bad value.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ["EstimationError", "as_trace", "check_traces"]
+
+
+class EstimationError(ValueError):
+    """Raised when a trace cannot give an estimate (bad input or missing phase)."""
+
+
+def as_trace(name: str, values: ArrayLike) -> NDArray[np.float64]:
+    """Return ``values`` as a 1-D float64 array, raising if it is not finite.
+
+    Args:
+        name: name of the trace, used in error messages (e.g. ``"M"``).
+        values: the samples.
+
+    Raises:
+        EstimationError: if the trace is not 1-D or holds NaN/inf samples.
+    """
+    arr = np.asarray(values, dtype=np.float64)
+    if arr.ndim != 1:
+        raise EstimationError(f"trace {name!r} must be 1-D, got shape {arr.shape}")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        idx = int(np.flatnonzero(bad)[0])
+        raise EstimationError(
+            f"trace {name!r} has {int(bad.sum())} non-finite (NaN/inf) sample(s), "
+            f"first at index {idx} (value {arr[idx]})"
+        )
+    return arr
+
+
+def check_traces(
+    t: ArrayLike, min_samples: int = 10, **traces: ArrayLike
+) -> tuple[NDArray[np.float64], dict[str, NDArray[np.float64]]]:
+    """Validate a time vector and traces sampled on it.
+
+    Args:
+        t: sample times in seconds; must be strictly increasing.
+        min_samples: fewest samples accepted.
+        **traces: named traces, each the same length as ``t``.
+
+    Returns:
+        ``(t, traces)`` as float64 arrays.
+
+    Raises:
+        EstimationError: too few samples, mismatched lengths, NaN/inf samples, or time that is
+            unsorted or repeated.
+    """
+    tt = as_trace("t", t)
+    out = {name: as_trace(name, v) for name, v in traces.items()}
+    for name, v in out.items():
+        if v.size != tt.size:
+            raise EstimationError(
+                f"mismatched lengths: trace {name!r} has {v.size} samples but t has {tt.size}"
+            )
+    if tt.size < min_samples:
+        raise EstimationError(
+            f"trace too short: {tt.size} samples, at least {min_samples} are needed"
+        )
+    dt = np.diff(tt)
+    if np.any(dt <= 0.0):
+        idx = int(np.flatnonzero(dt <= 0.0)[0])
+        kind = "repeated" if dt[idx] == 0.0 else "unsorted (decreasing)"
+        raise EstimationError(
+            f"time t is {kind} at index {idx + 1}: t[{idx}]={tt[idx]!r}, "
+            f"t[{idx + 1}]={tt[idx + 1]!r}; t must be strictly increasing"
+        )
+    return tt, out
