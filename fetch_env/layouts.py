@@ -1,0 +1,180 @@
+"""Food pieces and how they lie on the plate: single block, rows, diced mixes.
+
+Coordinates: the plate's top surface is z = 0; the half-spoons clamp along y (the clamp
+direction) and their blades are wide along x (across the clamp direction).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from fetch_env.errors import InvalidParameterError, require, require_finite
+from fetch_env.materials import PRESETS, Material
+
+Shape = Literal["cube", "ellipsoid", "sphere"]
+SHAPES: tuple[str, ...] = ("cube", "ellipsoid", "sphere")
+MIN_SIZE, MAX_SIZE = 0.006, 0.025  # [m] the supported piece sizes
+# An ellipsoid of nominal size s has extents (x, y, z) = s * ELLIPSOID_ASPECT: long along the
+# blade (x), so that it presses a larger area against the half-spoons than a sphere does.
+ELLIPSOID_ASPECT = (1.0, 0.75, 0.6)
+
+
+@dataclass(frozen=True)
+class Piece:
+    """One food piece resting on the plate.
+
+    Attributes:
+        shape: "cube", "ellipsoid" or "sphere".
+        size: nominal size [m] (cube edge, sphere diameter, ellipsoid long axis), 6 to 25 mm.
+        material: its :class:`Material`.
+        x, y: centre on the plate [m]; y is the clamp direction.
+    """
+
+    shape: Shape = "cube"
+    size: float = 0.015
+    material: Material = PRESETS["soft-0.2MPa"]
+    x: float = 0.0
+    y: float = 0.0
+
+    def __post_init__(self) -> None:
+        require(self.shape in SHAPES, "shape", self.shape, f"one of {SHAPES}")
+        require_finite("size", self.size)
+        require(MIN_SIZE <= self.size <= MAX_SIZE, "size", self.size,
+                f"in [{MIN_SIZE}, {MAX_SIZE}] m (6 to 25 mm)")
+        require_finite("x", self.x)
+        require_finite("y", self.y)
+        require(isinstance(self.material, Material), "material", self.material, "a Material")
+
+    @property
+    def extents(self) -> np.ndarray:
+        """Full extents (x, y, z) [m] of the undeformed piece."""
+        if self.shape == "ellipsoid":
+            return self.size * np.asarray(ELLIPSOID_ASPECT)
+        return np.full(3, self.size)
+
+    @property
+    def volume(self) -> float:
+        e = self.extents
+        return float(np.prod(e) * (np.pi / 6 if self.shape != "cube" else 1.0))
+
+    @property
+    def mass(self) -> float:
+        return self.volume * self.material.density
+
+    @property
+    def centre(self) -> np.ndarray:
+        """Centre of the resting piece [m]."""
+        return np.array([self.x, self.y, self.extents[2] / 2])
+
+    def support(self, direction: np.ndarray) -> float:
+        """Support function max_p p . n over the undeformed piece (exact per shape)."""
+        n = np.asarray(direction, float)
+        half = self.extents / 2
+        if self.shape == "cube":
+            return float(self.centre @ n + np.abs(n) @ half)
+        return float(self.centre @ n + np.sqrt((half**2) @ (n**2)))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"shape": self.shape, "size": self.size, "x": self.x, "y": self.y,
+                "material": self.material.to_dict()}
+
+
+def check_no_overlap(pieces: tuple[Piece, ...] | list[Piece]) -> None:
+    """Reject pieces whose footprints overlap (bounding boxes in x and y).
+
+    Touching (zero gap) is allowed; any overlap is an error naming both pieces.
+    """
+    require(len(pieces) >= 1, "pieces", len(pieces), "at least one piece")
+    for (i, a), (j, b) in itertools.combinations(enumerate(pieces), 2):
+        gap = np.abs(np.array([a.x - b.x, a.y - b.y])) - (a.extents[:2] + b.extents[:2]) / 2
+        if np.all(gap < -1e-9):
+            raise InvalidParameterError(
+                f"pieces {i} and {j} overlap (at x,y = ({a.x:g}, {a.y:g}) and ({b.x:g}, {b.y:g}) "
+                f"with extents {a.extents[:2].round(4).tolist()} and "
+                f"{b.extents[:2].round(4).tolist()} m)")
+
+
+def single_block(shape: Shape = "cube", size: float = 0.015,
+                 material: Material | None = None) -> tuple[Piece, ...]:
+    """One piece at the origin (the study's block experiments)."""
+    return (Piece(shape, size, material or PRESETS["soft-0.2MPa"]),)
+
+
+def grid(n_along: int, n_across: int, size: float, spacing_along: float,
+         spacing_across: float, material: Material | None = None,
+         shape: Shape = "cube") -> tuple[Piece, ...]:
+    """Cubes in ``n_along`` rows along the clamp direction (y) of ``n_across`` pieces each (x).
+
+    ``spacing_along`` is the gap between rows (along y), ``spacing_across`` the gap between
+    neighbours within a row (along x) [m]; the grid is centred on the origin.
+    """
+    require(n_along >= 1, "n_along", n_along, ">= 1")
+    require(n_across >= 1, "n_across", n_across, ">= 1")
+    require(spacing_along >= 0, "spacing_along", spacing_along, ">= 0 m")
+    require(spacing_across >= 0, "spacing_across", spacing_across, ">= 0 m")
+    mat = material or PRESETS["soft-0.2MPa"]
+    probe = Piece(shape, size, mat)
+    ex, ey = probe.extents[:2]
+    xs = (np.arange(n_across) - (n_across - 1) / 2) * (ex + spacing_across)
+    ys = (np.arange(n_along) - (n_along - 1) / 2) * (ey + spacing_along)
+    return tuple(Piece(shape, size, mat, float(x), float(y)) for y in ys for x in xs)
+
+
+def single_row(spacing_across: float = 0.001, n: int = 3, size: float = 0.012,
+               spacing_along: float = 0.001, material: Material | None = None
+               ) -> tuple[Piece, ...]:
+    """The study's single row: ``n`` cubes side by side across the clamp direction.
+
+    The study keeps 1 mm along the clamp direction and varies the spacing across it
+    (1 / 0.5 / 0.3 / 0.1 mm); with a single row the along-spacing separates nothing and is
+    kept only to describe the layout.
+    """
+    del spacing_along
+    return grid(1, n, size, 0.001, spacing_across, material)
+
+
+def two_rows(material: Material | None = None, n: int = 3, size: float = 0.012,
+             spacing_along: float = 0.001, spacing_across: float = 0.00001
+             ) -> tuple[Piece, ...]:
+    """The study's two rows: 2 x ``n`` cubes, 1 mm along and 0.01 mm across the clamp."""
+    return grid(2, n, size, spacing_along, spacing_across, material)
+
+
+def diced_mix(rng: np.random.Generator, n_pieces: int | None = None,
+              materials: tuple[str, ...] | None = None,
+              size_range: tuple[float, float] = (0.007, 0.010),
+              spacing: float = 0.0005) -> tuple[Piece, ...]:
+    """A diced mix: 6 to 12 pieces of mixed shapes and stiffnesses packed on a jittered grid.
+
+    Every random choice comes from ``rng``.  ``materials`` names presets to draw from
+    (default: the study's five levels).
+    """
+    from fetch_env.materials import STUDY_LEVELS
+
+    n = int(n_pieces if n_pieces is not None else rng.integers(6, 13))
+    require(1 <= n <= 16, "n_pieces", n, "in [1, 16]")
+    names = materials or STUDY_LEVELS
+    for name in names:
+        require(name in PRESETS, "materials", name, f"a preset name from {sorted(PRESETS)}")
+    lo, hi = size_range
+    require(MIN_SIZE <= lo <= hi <= MAX_SIZE, "size_range", size_range,
+            "within [0.006, 0.025] m with low <= high")
+    n_along = 2 if n <= 8 else 3
+    n_across = int(np.ceil(n / n_along))
+    pitch = hi + spacing
+    pieces: list[Piece] = []
+    cells = [(r, c) for r in range(n_along) for c in range(n_across)][:n]
+    for r, c in cells:
+        shape = str(rng.choice(SHAPES))
+        size = float(rng.uniform(lo, hi))
+        mat = PRESETS[str(rng.choice(names))]
+        slack = (pitch - size) / 2 - spacing / 2
+        x = (c - (n_across - 1) / 2) * pitch + rng.uniform(-slack, slack)
+        y = (r - (n_along - 1) / 2) * pitch + rng.uniform(-slack, slack)
+        pieces.append(Piece(shape, size, mat, float(x), float(y)))
+    check_no_overlap(pieces)
+    return tuple(pieces)

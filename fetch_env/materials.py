@@ -1,0 +1,120 @@
+"""Food materials: elasticity, one- or multi-term Prony viscoelasticity, friction, yield.
+
+The relaxation modulus is the Prony series
+``E(t) = E_0 [1 - sum_k g_k (1 - exp(-t / tau_k))]`` with ``E_0 = young`` the instantaneous
+modulus; the long-term modulus is ``E_0 (1 - sum_k g_k)``.  The study uses one term
+(g_1 = 0.425, tau_1 = 3.667 s, fitted to agar gel and tempura).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any
+
+from fetch_env.errors import InvalidParameterError, require, require_finite
+
+
+@dataclass(frozen=True)
+class Material:
+    """A homogeneous viscoelastic food material (SI units).
+
+    Attributes:
+        young: instantaneous Young's modulus E_0 [Pa]; 0.0123 MPa to 200 MPa are tested.
+        poisson: Poisson's ratio nu, in [0, 0.5).
+        density: [kg/m^3].
+        g1, tau1: first Prony term: relative modulus drop [-] in [0, 1) and time constant [s].
+        extra_prony: further Prony terms as ``((g_2, tau_2), ...)``; sum of all g < 1.
+        mu: Coulomb friction coefficient between half-spoon and food [-], applied exactly.
+        plate_mu: friction coefficient between food and plate [-].
+        yield_strain: von Mises plastic yield strain [-]; 0 means purely (visco)elastic.
+        name: a label (preset name or "custom").
+    """
+
+    young: float = 0.2e6
+    poisson: float = 0.3
+    density: float = 1000.0
+    g1: float = 0.425
+    tau1: float = 3.667
+    mu: float = 0.3
+    plate_mu: float = 0.1
+    yield_strain: float = 0.0
+    extra_prony: tuple[tuple[float, float], ...] = field(default_factory=tuple)
+    name: str = "custom"
+
+    def __post_init__(self) -> None:
+        for key in ("young", "poisson", "density", "g1", "tau1", "mu", "plate_mu",
+                    "yield_strain"):
+            require_finite(key, getattr(self, key))
+        require(self.young > 0, "young", self.young, "> 0 Pa")
+        require(self.young <= 1e10, "young", self.young, "<= 1e10 Pa")
+        require(0 <= self.poisson < 0.5, "poisson", self.poisson, "in [0, 0.5)")
+        require(self.density > 0, "density", self.density, "> 0 kg/m^3")
+        require(0 <= self.g1 < 1, "g1", self.g1, "in [0, 1)")
+        require(self.tau1 > 0, "tau1", self.tau1, "> 0 s")
+        require(self.mu >= 0, "mu", self.mu, ">= 0")
+        require(self.plate_mu >= 0, "plate_mu", self.plate_mu, ">= 0")
+        require(self.yield_strain >= 0, "yield_strain", self.yield_strain, ">= 0")
+        for k, term in enumerate(self.extra_prony, start=2):
+            require(len(term) == 2, f"extra_prony[{k - 2}]", term, "a (g, tau) pair")
+            g, tau = term
+            require_finite(f"g{k}", g)
+            require_finite(f"tau{k}", tau)
+            require(0 <= g < 1, f"g{k}", g, "in [0, 1)")
+            require(tau > 0, f"tau{k}", tau, "> 0 s")
+        require(self.g_total < 1, "sum of Prony g", self.g_total, "< 1")
+
+    @property
+    def prony_terms(self) -> tuple[tuple[float, float], ...]:
+        """All Prony terms ``((g_1, tau_1), (g_2, tau_2), ...)``; terms with g = 0 dropped."""
+        terms = ((self.g1, self.tau1), *self.extra_prony)
+        return tuple((g, tau) for g, tau in terms if g > 0)
+
+    @property
+    def g_total(self) -> float:
+        return self.g1 + sum(g for g, _ in self.extra_prony)
+
+    @property
+    def young_long_term(self) -> float:
+        """E_inf = E_0 (1 - sum g) [Pa]."""
+        return self.young * (1.0 - self.g_total)
+
+    def relaxation_modulus(self, t: float) -> float:
+        """E(t) after a unit step strain at t = 0 [Pa]."""
+        return self.young * (1.0 - sum(g * (1.0 - math.exp(-t / tau))
+                                       for g, tau in self.prony_terms))
+
+    def with_(self, **changes: Any) -> Material:
+        """A copy with some fields changed (validated again)."""
+        return replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["extra_prony"] = [list(t) for t in self.extra_prony]
+        return out
+
+
+# The study's five stiffness levels (diced mixes: 200, 40, 5, 0.15, 0.0123 MPa) and the
+# 0.2 MPa food of its viscoelastic and friction experiments.  Viscoelastic terms are the
+# study's (g_1 = 0.425, tau_1 = 3.667 s) for all; friction 0.3 to the spoon, 0.1 to the plate
+# (the study sets a small plate friction).
+_STUDY = {"g1": 0.425, "tau1": 3.667, "mu": 0.3, "plate_mu": 0.1, "poisson": 0.3,
+          "density": 1000.0}
+PRESETS: dict[str, Material] = {
+    "hard-200MPa": Material(young=200e6, name="hard-200MPa", **_STUDY),
+    "firm-40MPa": Material(young=40e6, name="firm-40MPa", **_STUDY),
+    "medium-5MPa": Material(young=5e6, name="medium-5MPa", **_STUDY),
+    "soft-0.2MPa": Material(young=0.2e6, name="soft-0.2MPa", **_STUDY),
+    "soft-0.15MPa": Material(young=0.15e6, name="soft-0.15MPa", **_STUDY),
+    "very-soft-0.0123MPa": Material(young=0.0123e6, name="very-soft-0.0123MPa", **_STUDY),
+}
+STUDY_LEVELS: tuple[str, ...] = ("hard-200MPa", "firm-40MPa", "medium-5MPa", "soft-0.15MPa",
+                                 "very-soft-0.0123MPa")
+
+
+def preset(name: str) -> Material:
+    """Look up a preset by name; the error lists the valid names."""
+    if name not in PRESETS:
+        raise InvalidParameterError(
+            f"unknown material preset {name!r}; choose from {', '.join(sorted(PRESETS))}")
+    return PRESETS[name]
