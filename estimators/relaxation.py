@@ -1,0 +1,772 @@
+"""Estimate the SLS parameters ``K1, K2, B`` of a food from one clamp-and-hold fetch.
+
+Inputs are sampled traces: time ``t`` (s), hinge angle ``theta`` (rad, 0 at the open pose and
+growing while closing) and the moment ``M`` (N m, positive when the food pushes the half-spoon
+open), plus the :class:`~estimators.sls.ClampGeometry`. The clamp velocity ``omega`` and hold
+angle ``theta_d`` are read off ``theta(t)`` unless given; first contact ``theta_1`` is detected
+from ``M``. The moment sensor is assumed to read 0 before contact (tare it first).
+
+Two estimators return the same :class:`ViscoelasticEstimate`:
+
+* :func:`estimate_three_step` -- the study's method: (1) ``K1`` from ``M_inf`` (eq. 7), with
+  ``M_inf`` and ``K2/B`` from a ``curve_fit`` of eq. 6 to the hold; (2) ``K2`` from
+  ``M_peak = M(t_d)`` through the exact clamp solution (a 1-D ``brentq`` root find; ``M(t_d)`` is
+  affine in ``K2`` once ``K2/B`` is fixed, so the root is unique), then ``B = K2 / (K2/B)``.
+* :func:`estimate_full_fit` -- one ``least_squares`` fit of the exact forward model to the whole
+  trace for ``log K1, log K2, log B`` and ``theta_1``, with 95 % intervals from the Jacobian
+  (``cov = s^2 (J^T J)^-1``, Student-t quantile, mapped back from log space).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import brentq, curve_fit, least_squares
+from scipy.stats import t as student_t
+
+from estimators.errors import EstimationError, check_traces
+from estimators.sls import (
+    ClampGeometry,
+    SLSParams,
+    moment_components,
+    moment_trace,
+    steady_moment,
+)
+
+__all__ = [
+    "ClampKinematics",
+    "ContactDetection",
+    "HoldFit",
+    "ViscoelasticEstimate",
+    "detect_contact",
+    "estimate_full_fit",
+    "estimate_three_step",
+    "fit_hold_relaxation",
+    "infer_kinematics",
+]
+
+_MIN_SAMPLES = 20
+_MIN_HOLD_SAMPLES = 10
+
+
+@dataclass(frozen=True)
+class ClampKinematics:
+    """Clamp motion read from ``theta(t)``.
+
+    Attributes:
+        omega: clamping velocity, rad/s.
+        theta_d: hold angle, rad.
+        t_start: time the ramp leaves ``theta = 0``, s.
+        t_d: time the ramp reaches ``theta_d`` (``t_start + theta_d / omega``), s.
+        theta_noise: robust estimate of the angle noise (sd), rad.
+    """
+
+    omega: float
+    theta_d: float
+    t_start: float
+    t_d: float
+    theta_noise: float
+
+
+@dataclass(frozen=True)
+class ContactDetection:
+    """First contact detected on the moment trace.
+
+    Attributes:
+        theta_1: contact angle, rad.
+        t_1: contact time, s.
+        threshold: moment threshold used, N m.
+        noise: robust sd of the moment noise, N m.
+        n_rise: number of rise samples extrapolated back to ``M = 0``.
+    """
+
+    theta_1: float
+    t_1: float
+    threshold: float
+    noise: float
+    n_rise: int
+
+
+@dataclass(frozen=True)
+class HoldFit:
+    """Fit of eq. 6, ``M = M_inf + A exp(-lam (t - t_d))``, to the hold.
+
+    Attributes:
+        M_inf: relaxed moment, N m.
+        A: relaxing part ``M(t_d) - M_inf``, N m.
+        lam: rate ``K2 / B``, 1/s.
+        cov: 3x3 covariance of ``(M_inf, A, lam)``.
+        r2: coefficient of determination on the hold samples.
+        duration: hold length used, s.
+        relaxes: whether a relaxation is resolved above the noise.
+    """
+
+    M_inf: float
+    A: float
+    lam: float
+    cov: NDArray[np.float64]
+    r2: float
+    duration: float
+    relaxes: bool
+
+
+@dataclass
+class ViscoelasticEstimate:
+    """SLS parameters estimated from one fetch.
+
+    Attributes:
+        K1, K2: springs, N/m. B: dashpot, N s/m.
+        g1: Prony weight ``K2/(K1+K2)``. tau1: Prony time ``B/K2``, s.
+        theta_1: first-contact angle, rad. M_peak: ``M(t_d)``, N m. M_inf: relaxed moment, N m.
+        t_d: time the clamp reaches ``theta_d``, s. omega: rad/s. theta_d: rad.
+        intervals: 95 % intervals, name -> (low, high), same units as the value.
+        r2_clamp, r2_hold: coefficients of determination of the model per phase.
+        reliable: False when the numbers should not be trusted (see ``warnings``).
+        warnings: human-readable reasons.
+        method: ``"three_step"`` or ``"full_fit"``.
+    """
+
+    K1: float
+    K2: float
+    B: float
+    g1: float
+    tau1: float
+    theta_1: float
+    M_peak: float
+    M_inf: float
+    t_d: float
+    omega: float
+    theta_d: float
+    intervals: dict[str, tuple[float, float]] = field(default_factory=dict)
+    r2_clamp: float = math.nan
+    r2_hold: float = math.nan
+    reliable: bool = True
+    warnings: list[str] = field(default_factory=list)
+    method: str = ""
+
+    def params(self) -> SLSParams:
+        """The estimate as :class:`~estimators.sls.SLSParams` (raises if not identified)."""
+        return SLSParams(self.K1, self.K2, self.B)
+
+
+# --------------------------------------------------------------------------------------------
+# helpers
+
+
+def _robust_sd(x: NDArray[np.float64]) -> float:
+    """Robust sd of white noise from first differences (MAD / sqrt 2), insensitive to trends."""
+    if x.size < 3:
+        return 0.0
+    d = np.diff(x)
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+
+
+def _r2(y: NDArray[np.float64], yhat: NDArray[np.float64]) -> float:
+    if y.size < 2:
+        return math.nan
+    ss_tot = float(np.sum((y - y.mean()) ** 2))
+    ss_res = float(np.sum((y - yhat) ** 2))
+    return 1.0 - ss_res / ss_tot if ss_tot > 0.0 else math.nan
+
+
+def _validate(
+    t: ArrayLike, theta: ArrayLike, M: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    tt, tr = check_traces(t, min_samples=_MIN_SAMPLES, theta=theta, M=M)
+    return tt, tr["theta"], tr["M"]
+
+
+# --------------------------------------------------------------------------------------------
+# phase detection
+
+
+def infer_kinematics(
+    t: ArrayLike,
+    theta: ArrayLike,
+    omega: float | None = None,
+    theta_d: float | None = None,
+) -> ClampKinematics:
+    """Read the clamp velocity, hold angle and timing off ``theta(t)``.
+
+    Args:
+        t: times, s (strictly increasing).
+        theta: hinge angle, rad (0 open, growing while closing).
+        omega: clamping velocity (rad/s) if known; else the slope of a line fit to the ramp
+            samples between 10 % and 90 % of ``theta_d``.
+        theta_d: hold angle (rad) if known; else the median of the plateau samples.
+
+    Raises:
+        EstimationError: bad traces, ``theta`` never grows, no hold (``theta`` never plateaus),
+            or too few ramp samples to read ``omega``.
+    """
+    tt, tr = check_traces(t, min_samples=_MIN_SAMPLES, theta=theta)
+    th = tr["theta"]
+    th_max = float(th.max())
+    if th_max <= 0.0:
+        raise EstimationError(
+            f"theta never grows (max theta = {th_max!r} rad); expected a closing clamp"
+        )
+    # Angle noise from second differences (a ramp and a plateau both have zero 2nd difference).
+    d2 = np.diff(th, 2)
+    th_noise = float(1.4826 * np.median(np.abs(d2)) / math.sqrt(6.0))
+    tol = max(1e-4 * th_max, 5.0 * th_noise, 1e-12)
+    if theta_d is None:
+        plateau = th >= th_max - 2.0 * tol
+        theta_d = float(np.median(th[plateau]))
+    elif not (np.isfinite(theta_d) and theta_d > 0.0):
+        raise EstimationError(f"theta_d must be finite and > 0 rad, got {theta_d!r}")
+    on_plateau = np.abs(th - theta_d) <= tol
+    # The hold is the final run of plateau samples.
+    n_hold = 0
+    for v in on_plateau[::-1]:
+        if not v:
+            break
+        n_hold += 1
+    if n_hold < _MIN_HOLD_SAMPLES:
+        raise EstimationError(
+            f"no hold phase: theta never plateaus (only {n_hold} final samples within "
+            f"{tol:.3g} rad of theta_d={theta_d:.6g} rad; need >= {_MIN_HOLD_SAMPLES})"
+        )
+    ramp = (th > 0.1 * theta_d) & (th < 0.9 * theta_d)
+    n_ramp = int(ramp.sum())
+    if omega is None:
+        if n_ramp < 2:
+            raise EstimationError(
+                f"cannot infer omega: only {n_ramp} ramp sample(s) between 10 % and 90 % of "
+                f"theta_d; pass omega"
+            )
+        slope, icpt = np.polyfit(tt[ramp], th[ramp], 1)
+        omega = float(slope)
+        if not omega > 0.0:
+            raise EstimationError(f"inferred omega={omega!r} rad/s is not > 0")
+        t_start = float(-icpt / omega)
+    else:
+        if not (np.isfinite(omega) and omega > 0.0):
+            raise EstimationError(f"omega must be finite and > 0 rad/s, got {omega!r}")
+        if n_ramp >= 1:
+            t_start = float(np.mean(tt[ramp] - th[ramp] / omega))
+        else:
+            i_hold = tt.size - n_hold
+            t_start = float(tt[i_hold] - theta_d / omega)
+    t_d = t_start + theta_d / omega
+    return ClampKinematics(float(omega), float(theta_d), t_start, float(t_d), th_noise)
+
+
+def detect_contact(
+    t: ArrayLike, M: ArrayLike, kin: ClampKinematics, threshold: float | None = None
+) -> ContactDetection:
+    """Detect first contact ``theta_1`` from the rise of the moment.
+
+    The moment noise ``sigma`` is estimated robustly from the hold; the first of three
+    consecutive samples above ``threshold`` (default ``max(6 sigma, 1 % of max M)``) marks the
+    rise, and a polynomial (degree <= 3, fewer for few samples) fitted to the rise up to 60 % of
+    the peak is extrapolated back to ``M = 0``, giving ``t_1`` to a fraction of a sample.
+
+    Raises:
+        EstimationError: if the moment never rises above the noise (no contact) or first rises
+            only after the clamp has stopped.
+    """
+    tt = np.asarray(t, dtype=np.float64)
+    m = np.asarray(M, dtype=np.float64)
+    hold = tt > kin.t_d
+    sigma = _robust_sd(m[hold]) if hold.sum() >= 3 else _robust_sd(m)
+    clamp_and_hold = tt >= kin.t_start
+    m_max = float(m[clamp_and_hold].max()) if clamp_and_hold.any() else float(m.max())
+    if not (m_max > 6.0 * sigma and m_max > 0.0):
+        raise EstimationError(
+            f"no contact: the moment never rises above the noise (max M = {m_max:.3g} N m, "
+            f"noise sd = {sigma:.3g} N m)"
+        )
+    thr = max(6.0 * sigma, 0.01 * m_max) if threshold is None else float(threshold)
+    above = m > thr
+    run = above[:-2] & above[1:-1] & above[2:]
+    idx = np.flatnonzero(run & clamp_and_hold[:-2])
+    if idx.size == 0:
+        raise EstimationError(
+            f"no contact: the moment never stays above the threshold {thr:.3g} N m "
+            f"(max M = {m_max:.3g} N m, noise sd = {sigma:.3g} N m)"
+        )
+    k = int(idx[0])
+    dt = float(np.median(np.diff(tt)))
+    if tt[k] > kin.t_d + 2.0 * dt:
+        raise EstimationError(
+            f"no contact during the clamp: the moment first exceeds {thr:.3g} N m at "
+            f"t={tt[k]:.6g} s, after the clamp stopped at t_d={kin.t_d:.6g} s"
+        )
+    # Rise samples: from k while M < 60 % of the peak (at least 4 if the clamp allows).
+    j = k
+    while j < tt.size and tt[j] <= kin.t_d + 1e-9 * dt and (m[j] < 0.6 * m_max or j - k < 4):
+        j += 1
+    sel = slice(k, max(j, k + 2))
+    tr, mr = tt[sel], m[sel]
+    n = tr.size
+    # Noise-free traces: a cubic gives t_1 to ~1e-8 rad. Noisy ones: a straight line, since the
+    # variance of a polynomial's extrapolation grows fast with its degree (checked: at 1 % noise
+    # a line beats a quadratic by 2-3x on K1).
+    deg = 3 if n >= 12 else (2 if n >= 4 else 1)
+    if sigma > 1e-4 * m_max:
+        deg = 1
+    tc = tr[0]
+    coef = np.polyfit(tr - tc, mr, deg)
+    # Root of the fitted rise nearest to (and not after) the first crossing.
+    roots = np.roots(coef)
+    lo_t = min(kin.t_start, tt[max(k - 3, 0)]) - tc
+    cand = [
+        r.real for r in roots if abs(r.imag) < 1e-9 * max(1.0, abs(r.real)) and lo_t <= r.real <= 0
+    ]
+    if cand:
+        t1 = tc + max(cand)
+    else:  # fall back to a straight line through the rise samples
+        slope, icpt = np.polyfit(tr - tc, mr, 1)
+        t1 = tc - icpt / slope if slope > 0 else tc
+    theta_1 = float(np.clip(kin.omega * (t1 - kin.t_start), 0.0, kin.theta_d))
+    return ContactDetection(theta_1, float(t1), float(thr), float(sigma), int(n))
+
+
+# --------------------------------------------------------------------------------------------
+# eq. 6 fit
+
+
+def _exp_model(s: NDArray[np.float64], m_inf: float, a: float, lam: float):
+    return m_inf + a * np.exp(-lam * s)
+
+
+def _exp_jac(s: NDArray[np.float64], m_inf: float, a: float, lam: float):
+    e = np.exp(-lam * s)
+    return np.column_stack((np.ones_like(s), e, -a * s * e))
+
+
+def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float) -> HoldFit:
+    """Fit eq. 6 to the hold samples ``t > t_d`` with ``scipy.optimize.curve_fit``.
+
+    Start values come from the linear integral form ``M(t) - M(t_a) = -lam int M + lam M_inf (t -
+    t_a)`` (exact for an exponential, robust to noise). ``relaxes`` is False when the fitted decay
+    ``A`` is not resolved (``A <= 4 se(A)`` or ``A <= 1e-3 M(t_d)``), the moment grows in the hold,
+    or the fit does not converge.
+
+    Raises:
+        EstimationError: fewer than 10 hold samples.
+    """
+    tt = np.asarray(t, dtype=np.float64)
+    m = np.asarray(M, dtype=np.float64)
+    hold = tt > t_d
+    s, y = tt[hold] - t_d, m[hold]
+    if s.size < _MIN_HOLD_SAMPLES:
+        raise EstimationError(
+            f"no hold phase: only {s.size} samples after t_d={t_d:.6g} s; need >= "
+            f"{_MIN_HOLD_SAMPLES}"
+        )
+    duration = float(s[-1])
+    # Integral-form start values.
+    cum = np.concatenate(([0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(s))))
+    X = np.column_stack((-cum, s - s[0]))
+    (lam0, lm0), *_ = np.linalg.lstsq(X, y - y[0], rcond=None)
+    lam0 = float(lam0)
+    if not (lam0 > 0.0 and np.isfinite(lam0)):
+        lam0 = 3.0 / max(duration, 1e-9)
+    m_inf0 = float(lm0 / lam0) if lam0 > 0 else float(y[-1])
+    if not np.isfinite(m_inf0):
+        m_inf0 = float(y[-1])
+    a0 = float(y[0] - m_inf0) * math.exp(lam0 * s[0])
+    p0 = (m_inf0, a0, lam0)
+    try:
+        popt, pcov = curve_fit(
+            _exp_model,
+            s,
+            y,
+            p0=p0,
+            jac=_exp_jac,
+            bounds=((-np.inf, -np.inf, 0.0), (np.inf, np.inf, np.inf)),
+            method="trf",
+            x_scale="jac",
+            xtol=1e-14,
+            ftol=1e-14,
+            gtol=1e-14,
+            max_nfev=200,
+        )
+        converged = bool(np.all(np.isfinite(popt)) and np.all(np.isfinite(pcov)))
+    except (RuntimeError, ValueError):
+        popt, pcov, converged = np.asarray(p0), np.full((3, 3), np.inf), False
+    m_inf, a, lam = (float(v) for v in popt)
+    r2 = _r2(y, _exp_model(s, m_inf, a, lam))
+    se_a = float(np.sqrt(pcov[1, 1])) if np.isfinite(pcov[1, 1]) else np.inf
+    m_d = m_inf + a
+    relaxes = bool(
+        converged
+        and a > 0.0
+        and lam > 0.0
+        and a > 4.0 * se_a
+        and a > 1e-3 * abs(m_d)
+        and lam * duration > 0.02
+    )
+    return HoldFit(m_inf, a, lam, np.asarray(pcov, dtype=np.float64), r2, duration, relaxes)
+
+
+# --------------------------------------------------------------------------------------------
+# three-step method
+
+
+def _k2_from_peak(
+    m_peak: float,
+    K1: float,
+    lam: float,
+    geometry: ClampGeometry,
+    theta_1: float,
+    kin: ClampKinematics,
+) -> float:
+    """Step 3: the ``K2`` whose clamp solution gives ``M(t_d) = m_peak`` (``B = K2 / lam``)."""
+    td = np.array([kin.t_d])
+
+    def resid(k2: float) -> float:
+        p = SLSParams(K1, k2, k2 / lam)
+        m = moment_trace(td, p, geometry, theta_1, kin.theta_d, kin.omega, kin.t_start)
+        return float(m[0]) - m_peak
+
+    lo = 1e-12 * max(K1, 1.0)
+    f_lo = resid(lo)
+    if f_lo >= 0.0:
+        raise EstimationError(
+            f"M_peak={m_peak:.6g} N m does not exceed the relaxed moment of K1 alone "
+            f"({f_lo + m_peak:.6g} N m): the moment never relaxes, K2 is not identifiable"
+        )
+    hi = max(K1, 1.0)
+    for _ in range(60):
+        if resid(hi) > 0.0:
+            break
+        hi *= 10.0
+    else:  # pragma: no cover - only for absurd inputs
+        raise EstimationError(f"could not bracket K2 for M_peak={m_peak!r} N m")
+    return float(brentq(resid, lo, hi, xtol=1e-14 * hi, rtol=1e-14))
+
+
+def _three_step_core(
+    hf: HoldFit,
+    geometry: ClampGeometry,
+    theta_1: float,
+    kin: ClampKinematics,
+    m_inf: float | None = None,
+    a: float | None = None,
+    lam: float | None = None,
+) -> tuple[float, float, float]:
+    m_inf = hf.M_inf if m_inf is None else m_inf
+    a = hf.A if a is None else a
+    lam = hf.lam if lam is None else lam
+    unit = steady_moment(1.0, geometry, theta_1, kin.theta_d)  # eq. 7: M_inf per unit K1
+    if unit <= 0.0:
+        raise EstimationError(
+            f"theta_1={theta_1:.6g} rad is not below theta_d={kin.theta_d:.6g} rad: no compression"
+        )
+    K1 = m_inf / unit
+    if not K1 > 0.0:
+        raise EstimationError(f"relaxed moment M_inf={m_inf:.6g} N m gives K1 <= 0")
+    K2 = _k2_from_peak(m_inf + a, K1, lam, geometry, theta_1, kin)
+    return K1, K2, K2 / lam
+
+
+def estimate_three_step(
+    t: ArrayLike,
+    theta: ArrayLike,
+    M: ArrayLike,
+    geometry: ClampGeometry,
+    omega: float | None = None,
+    theta_d: float | None = None,
+) -> ViscoelasticEstimate:
+    """The study's three-step estimate of ``K1, K2, B`` (see module docstring).
+
+    Args:
+        t: times, s. theta: hinge angle, rad. M: moment, N m.
+        geometry: clamp geometry (``L`` m, ``theta_0`` rad).
+        omega: clamping velocity (rad/s) if known. theta_d: hold angle (rad) if known.
+
+    Returns:
+        A :class:`ViscoelasticEstimate`. Intervals propagate the eq. 6 fit's covariance (of
+        ``M_inf``, ``A``, ``K2/B``) by the delta method; the uncertainty of the detected
+        ``theta_1`` is not included. If the moment never relaxes, ``K2``, ``B`` (and ``g1``,
+        ``tau1``) are NaN and ``reliable`` is False.
+
+    Raises:
+        EstimationError: bad traces, no hold, no contact.
+    """
+    tt, th, m = _validate(t, theta, M)
+    kin = infer_kinematics(tt, th, omega, theta_d)
+    contact = detect_contact(tt, m, kin)
+    hf = fit_hold_relaxation(tt, m, kin.t_d)
+    return _three_step_from_parts(tt, m, geometry, kin, contact, hf)
+
+
+def _never_relaxes_estimate(
+    tt: NDArray[np.float64],
+    m: NDArray[np.float64],
+    geometry: ClampGeometry,
+    kin: ClampKinematics,
+    theta_1: float,
+    hf: HoldFit,
+    method: str,
+    extra: list[str] | None = None,
+) -> ViscoelasticEstimate:
+    hold = tt > kin.t_d
+    m_inf = float(np.mean(m[hold]))
+    unit = steady_moment(1.0, geometry, theta_1, kin.theta_d)
+    K1 = m_inf / unit if unit > 0 else math.nan
+    warns = [
+        f"the moment never relaxes in the hold (fitted decay A={hf.A:.3g} N m, "
+        f"rate={hf.lam:.3g} 1/s over {hf.duration:.3g} s): K2 and B are not identifiable; "
+        "K1 assumes a purely elastic food"
+    ]
+    warns += extra or []
+    return ViscoelasticEstimate(
+        K1=K1,
+        K2=math.nan,
+        B=math.nan,
+        g1=math.nan,
+        tau1=math.nan,
+        theta_1=theta_1,
+        M_peak=float(m[hold][0]),
+        M_inf=m_inf,
+        t_d=kin.t_d,
+        omega=kin.omega,
+        theta_d=kin.theta_d,
+        r2_hold=hf.r2,
+        reliable=False,
+        warnings=warns,
+        method=method,
+    )
+
+
+def _three_step_from_parts(
+    tt: NDArray[np.float64],
+    m: NDArray[np.float64],
+    geometry: ClampGeometry,
+    kin: ClampKinematics,
+    contact: ContactDetection,
+    hf: HoldFit,
+) -> ViscoelasticEstimate:
+    theta_1 = contact.theta_1
+    if not hf.relaxes:
+        return _never_relaxes_estimate(tt, m, geometry, kin, theta_1, hf, "three_step")
+    warns: list[str] = []
+    K1, K2, B = _three_step_core(hf, geometry, theta_1, kin)
+    # Delta-method intervals from the hold-fit covariance.
+    base = np.array([hf.M_inf, hf.A, hf.lam])
+    vals = np.array([K1, K2, B])
+    Jm = np.empty((3, 3))
+    for i in range(3):
+        h = 1e-6 * max(abs(base[i]), 1e-12)
+        pp, pm = base.copy(), base.copy()
+        pp[i] += h
+        pm[i] -= h
+        Jm[:, i] = (
+            np.array(_three_step_core(hf, geometry, theta_1, kin, *pp))
+            - np.array(_three_step_core(hf, geometry, theta_1, kin, *pm))
+        ) / (2 * h)
+    cov = Jm @ hf.cov @ Jm.T
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, np.inf))
+    n_hold = int((tt > kin.t_d).sum())
+    q = float(student_t.ppf(0.975, max(n_hold - 3, 1)))
+    intervals = {
+        name: (float(v - q * s), float(v + q * s))
+        for name, v, s in zip(("K1", "K2", "B"), vals, se, strict=True)
+    }
+    tau1 = 1.0 / hf.lam
+    se_tau = math.sqrt(hf.cov[2, 2]) / hf.lam**2 if np.isfinite(hf.cov[2, 2]) else math.inf
+    intervals["tau1"] = (tau1 - q * se_tau, tau1 + q * se_tau)
+    params = SLSParams(K1, K2, B)
+    clamp = (tt > contact.t_1) & (tt <= kin.t_d)
+    m_model = moment_trace(
+        tt[clamp], params, geometry, theta_1, kin.theta_d, kin.omega, kin.t_start
+    )
+    r2_clamp = _r2(m[clamp], m_model)
+    reliable = _reliability(hf, tau1, vals, se * q, warns, r2_clamp)
+    if contact.n_rise < 3:
+        warns.append(
+            f"contact angle extrapolated from only {contact.n_rise} rise samples; "
+            "theta_1 (and hence K1) is coarse"
+        )
+        reliable = False
+    return ViscoelasticEstimate(
+        K1=K1,
+        K2=K2,
+        B=B,
+        g1=params.g1,
+        tau1=tau1,
+        theta_1=theta_1,
+        M_peak=hf.M_inf + hf.A,
+        M_inf=hf.M_inf,
+        t_d=kin.t_d,
+        omega=kin.omega,
+        theta_d=kin.theta_d,
+        intervals=intervals,
+        r2_clamp=r2_clamp,
+        r2_hold=hf.r2,
+        reliable=reliable,
+        warnings=warns,
+        method="three_step",
+    )
+
+
+def _reliability(
+    hf: HoldFit,
+    tau1: float,
+    vals: NDArray[np.float64],
+    half_widths: NDArray[np.float64],
+    warns: list[str],
+    r2_clamp: float,
+) -> bool:
+    ok = True
+    if hf.duration < tau1:
+        warns.append(
+            f"hold ({hf.duration:.3g} s) is shorter than tau1 ({tau1:.3g} s): M_inf and K1 are "
+            "extrapolated"
+        )
+        ok = False
+    for name, v, hw in zip(("K1", "K2", "B"), vals, half_widths, strict=True):
+        if not (np.isfinite(hw) and hw < 0.5 * abs(v)):
+            warns.append(f"{name} is poorly determined (95 % half-width {hw:.3g} vs {v:.3g})")
+            ok = False
+    if np.isfinite(r2_clamp) and r2_clamp < 0.9:
+        warns.append(f"clamp-phase R^2 = {r2_clamp:.4f} < 0.9: the SLS model fits the clamp poorly")
+        ok = False
+    return ok
+
+
+# --------------------------------------------------------------------------------------------
+# full least-squares fit
+
+
+def estimate_full_fit(
+    t: ArrayLike,
+    theta: ArrayLike,
+    M: ArrayLike,
+    geometry: ClampGeometry,
+    omega: float | None = None,
+    theta_d: float | None = None,
+    fit_theta_1: bool = True,
+) -> ViscoelasticEstimate:
+    """Fit the exact clamp+hold model to the whole trace at once (see module docstring).
+
+    Parameters ``log K1, log K2, log B`` (and ``theta_1`` in ``[0, theta_d)`` when
+    ``fit_theta_1``) are fitted by ``scipy.optimize.least_squares`` (TRF) to every sample,
+    starting from the three-step estimate. 95 % intervals use ``s^2 (J^T J)^-1`` with a Student-t
+    quantile, mapped back from log space; ``g1``/``tau1`` intervals by the delta method.
+
+    Args:
+        t: times, s. theta: hinge angle, rad. M: moment, N m.
+        geometry: clamp geometry.
+        omega, theta_d: clamp velocity (rad/s) and hold angle (rad) if known.
+        fit_theta_1: also fit the contact angle (default); else keep the detected one.
+
+    Raises:
+        EstimationError: bad traces, no hold, no contact.
+    """
+    tt, th, m = _validate(t, theta, M)
+    kin = infer_kinematics(tt, th, omega, theta_d)
+    contact = detect_contact(tt, m, kin)
+    hf = fit_hold_relaxation(tt, m, kin.t_d)
+    if not hf.relaxes:
+        return _never_relaxes_estimate(tt, m, geometry, kin, contact.theta_1, hf, "full_fit")
+    try:
+        start = _three_step_from_parts(tt, m, geometry, kin, contact, hf)
+        K1_0, K2_0, B_0 = start.K1, start.K2, start.B
+    except EstimationError:
+        K1_0 = max(hf.M_inf, 1e-12) / max(
+            steady_moment(1.0, geometry, contact.theta_1, kin.theta_d), 1e-300
+        )
+        K2_0 = K1_0
+        B_0 = K2_0 / hf.lam
+    theta_1_0 = contact.theta_1
+    th_hi = kin.theta_d * (1.0 - 1e-9)
+    theta_1_0 = min(max(theta_1_0, 0.0), th_hi * (1 - 1e-6))
+
+    def model(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        k1, k2, b = np.exp(p[:3])
+        th1 = p[3] if fit_theta_1 else theta_1_0
+        S, V = moment_components(tt, geometry, th1, kin.theta_d, kin.omega, k2 / b, kin.t_start)
+        return k1 * S + k2 * V
+
+    def resid(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        return model(p) - m
+
+    x0 = [math.log(K1_0), math.log(K2_0), math.log(B_0)]
+    lb, ub = [-np.inf] * 3, [np.inf] * 3
+    if fit_theta_1:
+        x0.append(theta_1_0)
+        lb.append(0.0)
+        ub.append(th_hi)
+    res = least_squares(
+        resid,
+        np.asarray(x0),
+        bounds=(lb, ub),
+        method="trf",
+        x_scale="jac",
+        xtol=1e-12,
+        ftol=1e-12,
+        gtol=1e-12,
+        max_nfev=200,
+    )
+    p = res.x
+    k1, k2, b = (float(v) for v in np.exp(p[:3]))
+    th1 = float(p[3]) if fit_theta_1 else theta_1_0
+    n, npar = tt.size, p.size
+    dof = max(n - npar, 1)
+    s2 = 2.0 * float(res.cost) / dof
+    J = res.jac
+    try:
+        cov = s2 * np.linalg.inv(J.T @ J)
+    except np.linalg.LinAlgError:
+        cov = np.full((npar, npar), np.inf)
+    q = float(student_t.ppf(0.975, dof))
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, np.inf))
+    intervals: dict[str, tuple[float, float]] = {}
+    for i, name in enumerate(("K1", "K2", "B")):
+        intervals[name] = (math.exp(p[i] - q * se[i]), math.exp(p[i] + q * se[i]))
+    if fit_theta_1:
+        intervals["theta_1"] = (th1 - q * se[3], th1 + q * se[3])
+    params = SLSParams(k1, k2, b)
+    g1, tau1 = params.to_prony()
+    grad_g = np.zeros(npar)
+    grad_g[0], grad_g[1] = -g1 * (1 - g1), g1 * (1 - g1)
+    se_g = math.sqrt(max(float(grad_g @ cov @ grad_g), 0.0))
+    intervals["g1"] = (g1 - q * se_g, g1 + q * se_g)
+    grad_lt = np.zeros(npar)
+    grad_lt[1], grad_lt[2] = -1.0, 1.0
+    se_lt = math.sqrt(max(float(grad_lt @ cov @ grad_lt), 0.0))
+    intervals["tau1"] = (tau1 * math.exp(-q * se_lt), tau1 * math.exp(q * se_lt))
+
+    fitted = model(p)
+    clamp = (tt > kin.t_start + th1 / kin.omega) & (tt <= kin.t_d)
+    hold = tt > kin.t_d
+    r2_clamp = _r2(m[clamp], fitted[clamp])
+    r2_hold = _r2(m[hold], fitted[hold])
+    warns: list[str] = []
+    reliable = bool(res.success)
+    if not res.success:
+        warns.append(f"least_squares did not converge: {res.message}")
+    vals = np.array([k1, k2, b])
+    half = np.array([(intervals[k][1] - intervals[k][0]) / 2 for k in ("K1", "K2", "B")])
+    reliable &= _reliability(hf, tau1, vals, half, warns, r2_clamp)
+    m_peak = float(
+        moment_trace(np.array([kin.t_d]), params, geometry, th1, kin.theta_d, kin.omega,
+                     kin.t_start)[0]
+    )
+    return ViscoelasticEstimate(
+        K1=k1,
+        K2=k2,
+        B=b,
+        g1=g1,
+        tau1=tau1,
+        theta_1=th1,
+        M_peak=m_peak,
+        M_inf=steady_moment(params, geometry, th1, kin.theta_d),
+        t_d=kin.t_d,
+        omega=kin.omega,
+        theta_d=kin.theta_d,
+        intervals=intervals,
+        r2_clamp=r2_clamp,
+        r2_hold=r2_hold,
+        reliable=bool(reliable),
+        warnings=warns,
+        method="full_fit",
+    )
