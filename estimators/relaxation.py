@@ -157,11 +157,11 @@ class ViscoelasticEstimate:
 
 
 def _robust_sd(x: NDArray[np.float64]) -> float:
-    """Robust sd of white noise from first differences (MAD / sqrt 2), insensitive to trends."""
-    if x.size < 3:
+    """Robust sd of white noise from second differences (MAD / sqrt 6), blind to smooth trends."""
+    if x.size < 4:
         return 0.0
-    d = np.diff(x)
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+    d2 = np.diff(x, 2)
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
 def _r2(y: NDArray[np.float64], yhat: NDArray[np.float64]) -> float:
