@@ -1,0 +1,215 @@
+"""Friction coefficient ``mu`` between half-spoon and food by induced slippage.
+
+The clamped food is pushed against the plate while the closed half-spoons keep moving, so the
+half-spoons slide on the food. By Coulomb's law ``|T| <= mu |N|`` for the tangential ``T`` and
+normal ``N`` contact forces (N) on a half-spoon, with equality only while it slides: the ratio
+``T/N`` rises through an onset transient and then plateaus at ``mu`` during steady sliding.
+
+:func:`estimate_friction` finds that plateau automatically -- the runs of samples where the
+rolling standard deviation of the combined ratio ``(|T_L| + |T_R|) / (|N_L| + |N_R|)`` is at the
+noise level, taking the run with the highest level (a static, sub-``mu`` plateau before the slide
+is therefore never chosen) -- and returns the force-weighted ratio over it with a 95 % interval
+whose sample size is corrected for autocorrelation (AR(1) effective sample size).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.stats import t as student_t
+
+from estimators.errors import EstimationError, check_traces
+
+__all__ = ["FrictionEstimate", "estimate_friction"]
+
+_MIN_SAMPLES = 20
+
+
+@dataclass
+class FrictionEstimate:
+    """Friction coefficient from one induced-slippage run.
+
+    Attributes:
+        mu: friction coefficient (dimensionless), both half-spoons combined.
+        interval: 95 % interval of ``mu``.
+        window: ``(t_begin, t_end)`` of the steady-slide samples used, s.
+        n_samples: samples in the window.
+        n_effective: autocorrelation-corrected sample size.
+        mu_left, mu_right: per half-spoon ratios over the same window.
+        reliable: False when the number should not be trusted (see ``warnings``).
+        warnings: human-readable reasons.
+    """
+
+    mu: float
+    interval: tuple[float, float]
+    window: tuple[float, float]
+    n_samples: int
+    n_effective: float
+    mu_left: float
+    mu_right: float
+    reliable: bool = True
+    warnings: list[str] = field(default_factory=list)
+
+
+def _rolling(x: NDArray[np.float64], w: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Mean and sd of every length-``w`` window of ``x`` (``len(x) - w + 1`` values)."""
+    c1 = np.concatenate(([0.0], np.cumsum(x)))
+    c2 = np.concatenate(([0.0], np.cumsum(x * x)))
+    s1 = c1[w:] - c1[:-w]
+    s2 = c2[w:] - c2[:-w]
+    mean = s1 / w
+    var = np.maximum(s2 / w - mean * mean, 0.0)
+    return mean, np.sqrt(var)
+
+
+def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """Half-open ``[start, stop)`` index ranges of the True runs of ``mask``."""
+    m = np.concatenate(([False], mask, [False])).astype(np.int8)
+    d = np.diff(m)
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
+
+
+def estimate_friction(
+    t: ArrayLike,
+    normal_left: ArrayLike,
+    tangential_left: ArrayLike,
+    normal_right: ArrayLike,
+    tangential_right: ArrayLike,
+    slide_start: float | None = None,
+    window: int | None = None,
+    stability: float = 2.5,
+    min_normal: float = 1e-3,
+) -> FrictionEstimate:
+    """Estimate ``mu`` from the contact forces on both half-spoons during an induced slide.
+
+    Args:
+        t: times, s (strictly increasing).
+        normal_left, tangential_left, normal_right, tangential_right: contact forces, N (signs
+            are ignored: magnitudes are used).
+        slide_start: time (s) the slide starts, if known; earlier samples are ignored.
+        window: rolling window (samples) for the plateau test; default ``len/20`` in [5, 200].
+        stability: a window is steady when its ratio sd is below ``stability`` times the
+            sample-to-sample noise sd of the ratio.
+        min_normal: smallest total normal force (N) counted as contact.
+
+    Returns:
+        A :class:`FrictionEstimate`.
+
+    Raises:
+        EstimationError: bad traces (too short, mismatched, NaN/inf, unsorted time), normal force
+            ~0 where the slide should be, or no steady plateau of the ratio.
+    """
+    tt, tr = check_traces(
+        t,
+        min_samples=_MIN_SAMPLES,
+        normal_left=normal_left,
+        tangential_left=tangential_left,
+        normal_right=normal_right,
+        tangential_right=tangential_right,
+    )
+    nl, tl = np.abs(tr["normal_left"]), np.abs(tr["tangential_left"])
+    nr, tgr = np.abs(tr["normal_right"]), np.abs(tr["tangential_right"])
+    if slide_start is not None:
+        keep = tt >= slide_start
+        if keep.sum() < _MIN_SAMPLES:
+            raise EstimationError(
+                f"trace too short after slide_start={slide_start!r} s: {int(keep.sum())} "
+                f"samples, at least {_MIN_SAMPLES} are needed"
+            )
+        tt, nl, tl, nr, tgr = tt[keep], nl[keep], tl[keep], nr[keep], tgr[keep]
+    n_tot = nl + nr
+    t_tot = tl + tgr
+    n_scale = float(np.max(n_tot))
+    if not n_scale > min_normal:
+        raise EstimationError(
+            f"normal force ~0 in the slip window: max |N_left| + |N_right| = {n_scale:.3g} N "
+            f"(<= min_normal={min_normal:.3g} N)"
+        )
+    valid = n_tot > max(0.05 * n_scale, min_normal)
+    n = tt.size
+    w = int(window) if window is not None else int(np.clip(n // 20, 5, 200))
+    if w < 3 or w > n // 2:
+        raise EstimationError(f"rolling window {w} samples is invalid for {n} samples")
+    ratio = np.where(valid, t_tot / np.where(valid, n_tot, 1.0), np.nan)
+
+    # Sample-to-sample noise of the ratio (MAD of 2nd differences, blind to smooth trends).
+    rv = ratio[valid]
+    if rv.size < _MIN_SAMPLES:
+        raise EstimationError(
+            f"normal force ~0 in the slip window: only {rv.size} samples have normal force "
+            f"above max(5 % of its maximum {n_scale:.3g} N, min_normal)"
+        )
+    d2 = np.diff(rv, 2)
+    sigma = float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+    level = float(np.median(rv))
+    noise_floor = max(sigma, 1e-6 * abs(level), 1e-12)
+
+    r0 = np.where(valid, ratio, 0.0)
+    mean_w, sd_w = _rolling(r0, w)
+    ok_w, _ = _rolling(valid.astype(np.float64), w)
+    steady_w = (ok_w > 1.0 - 1e-12) & (sd_w <= stability * noise_floor)
+    runs = [(a, b) for a, b in _runs(steady_w) if b - a >= max(w // 2, 2)]
+    if not runs:
+        raise EstimationError(
+            "no steady slip: the tangential/normal ratio never plateaus (rolling sd never falls "
+            f"to {stability} x its noise sd {noise_floor:.3g})"
+        )
+    # Coulomb: T/N equals mu only while sliding and is below it otherwise -> highest plateau.
+    levels = [float(np.median(mean_w[a:b])) for a, b in runs]
+    a, b = runs[int(np.argmax(levels))]
+    # Window starts a..b-1 cover samples a .. b-1+w-1; trim half a window at the front, where
+    # the first steady windows can still hold the tail of the onset transient.
+    i0 = min(a + w // 2, b - 1)
+    i1 = b - 1 + w
+    # Then drop leading half-window blocks whose mean still differs (> 3 sd of a block mean)
+    # from the rest of the window: the slow tail of the transient.
+    bs = max(w // 2, 2)
+    while i1 - i0 >= 4 * bs:
+        head = ratio[i0 : i0 + bs]
+        rest = ratio[i0 + bs : i1]
+        sd_r = float(np.std(rest, ddof=1))
+        if abs(float(head.mean()) - float(rest.mean())) <= 3.0 * sd_r / math.sqrt(bs):
+            break
+        i0 += bs
+    sel = slice(i0, i1)
+    N_w, T_w = n_tot[sel], t_tot[sel]
+    mu = float(T_w.sum() / N_w.sum())
+    e = T_w - mu * N_w
+    m = e.size
+    ec = e - e.mean()
+    denom = float(np.dot(ec, ec))
+    rho = float(np.dot(ec[1:], ec[:-1]) / denom) if denom > 0 else 0.0
+    rho = min(max(rho, 0.0), 0.99)
+    n_eff = max(m * (1.0 - rho) / (1.0 + rho), 2.0)
+    s_e = float(np.std(e, ddof=1))
+    se_mu = s_e * math.sqrt(m / n_eff) * math.sqrt(m) / float(N_w.sum())
+    q = float(student_t.ppf(0.975, max(n_eff - 1.0, 1.0)))
+    interval = (mu - q * se_mu, mu + q * se_mu)
+    mu_l = float(tl[sel].sum() / nl[sel].sum()) if nl[sel].sum() > 0 else math.nan
+    mu_r = float(tgr[sel].sum() / nr[sel].sum()) if nr[sel].sum() > 0 else math.nan
+    warns: list[str] = []
+    reliable = True
+    if m < 2 * w:
+        warns.append(f"steady-slide window is short ({m} samples < 2 x rolling window {w})")
+        reliable = False
+    if q * se_mu > 0.05 * abs(mu):
+        warns.append(f"mu is poorly determined (95 % half-width {q * se_mu:.3g} vs {mu:.3g})")
+        reliable = False
+    if np.isfinite(mu_l) and np.isfinite(mu_r) and abs(mu_l - mu_r) > 0.1 * mu:
+        warns.append(
+            f"half-spoons disagree: mu_left={mu_l:.4g}, mu_right={mu_r:.4g} (asymmetric contact?)"
+        )
+    return FrictionEstimate(
+        mu=mu,
+        interval=(float(interval[0]), float(interval[1])),
+        window=(float(tt[i0]), float(tt[i1 - 1])),
+        n_samples=int(m),
+        n_effective=float(n_eff),
+        mu_left=mu_l,
+        mu_right=mu_r,
+        reliable=reliable,
+        warnings=warns,
+    )
