@@ -189,16 +189,13 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         warnings.filterwarnings("ignore", message=".*no equality constraints or passive")
         model = spec.compile()
     scene = Scene(model=model, pieces=pieces, geometry=geometry, pose=pose)
-    for kind, names in ((mujoco.mjtObj.mjOBJ_JOINT, ("hinge_left", "hinge_right")),
-                        (mujoco.mjtObj.mjOBJ_ACTUATOR, ("servo_left", "servo_right")),
+    for kind, names in ((mujoco.mjtObj.mjOBJ_JOINT, ("hinge_left", "hinge_right", "lift")),
+                        (mujoco.mjtObj.mjOBJ_ACTUATOR, ("servo_left", "servo_right",
+                                                        "servo_lift")),
                         (mujoco.mjtObj.mjOBJ_GEOM, ("blade_left", "blade_right", "plate")),
-                        (mujoco.mjtObj.mjOBJ_BODY, ("stage", "wrist")),
-                        (mujoco.mjtObj.mjOBJ_SENSOR, ("torque_left", "torque_right",
-                                                      "force_left", "force_right",
-                                                      "wrist_force"))):
+                        (mujoco.mjtObj.mjOBJ_BODY, ("stage", "wrist"))):
         for name in names:
             scene.ids[name] = mujoco.mj_name2id(model, kind, name)
-    scene.ids["stage_mocap"] = int(model.body_mocapid[scene.ids["stage"]])
     scene.piece_flex = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, f"piece_{i}")
                         for i in range(len(pieces))]
     return scene

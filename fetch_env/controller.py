@@ -1,0 +1,340 @@
+"""The fetch as phases, and the study's two probe experiments, with their sensor traces.
+
+Every experiment starts with the pieces settling on the plate under gravity with the
+half-spoons at the open pose, then follows a prescribed profile of the hinge angle theta(t)
+(the study's angle: 0 at the open pose, growing as the blades close) and the stage height:
+
+* ``fetch``: clamp at constant omega to theta_d, hold, lift at constant speed by
+  ``lift_height``, hold in the air.
+* ``relaxation``: clamp at omega to theta_d, hold (long) while the moment relaxes.
+* ``slip``: clamp to theta_d, hold briefly, then move the closed pair ``slide_distance``
+  toward the plate over ``slide_time`` so the plate holds the food and the blades slide.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import mujoco
+import numpy as np
+
+from fetch_env.errors import InvalidParameterError, SimulationDivergedError, require, require_finite
+from fetch_env.layouts import Piece
+from fetch_env.metrics import StrainMeter, piece_positions, residual_plastic_strain
+from fetch_env.scene import Geometry, Scene, build_scene, initial_state
+from fetch_env.sensors import ContactSensors
+from fetch_env.viscoelastic import PronyForces
+
+Experiment = Literal["fetch", "relaxation", "slip"]
+EXPERIMENTS: tuple[str, ...] = ("fetch", "relaxation", "slip")
+PHASES: tuple[str, ...] = ("settle", "clamp", "hold", "lift", "air", "slide")
+PHASE_CODE = {name: i for i, name in enumerate(PHASES)}
+SERVO_TIME_CONSTANT = 0.005  # [s] kv / kp of the hinge and lift servos (fetch_base.xml)
+THETA_D_RANGE = (0.0, 0.3)  # [rad]
+OMEGA_RANGE = (1e-3, 2.0)  # [rad/s]
+LIFT_SPEED_RANGE = (1e-4, 0.1)  # [m/s]
+
+
+@dataclass(frozen=True)
+class FetchAction:
+    """What the robot is told to do (SI units).
+
+    Attributes:
+        theta_d: preset angular displacement the clamp stops at [rad], from the open pose.
+        omega: clamping angular velocity [rad/s].
+        lift_speed: lifting speed [m/s].
+        hold: time held at theta_d before lifting (fetch) or before sliding (slip);
+            the relaxation time for the relaxation probe [s].
+        lift_height: lift distance [m].
+        air_hold: time held in the air after the lift [s].
+        settle: time the pieces settle on the plate before the clamp [s].
+        slide_distance: induced-slip travel toward the plate [m].
+        slide_time: duration of the induced slip [s].
+    """
+
+    theta_d: float = 0.045
+    omega: float = 0.1
+    lift_speed: float = 0.005
+    hold: float = 1.0
+    lift_height: float = 0.005
+    air_hold: float = 1.0
+    settle: float = 0.3
+    slide_distance: float = 0.005
+    slide_time: float = 10.0
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            require_finite(f.name, getattr(self, f.name))
+        require(THETA_D_RANGE[0] < self.theta_d <= THETA_D_RANGE[1], "theta_d", self.theta_d,
+                f"in ({THETA_D_RANGE[0]}, {THETA_D_RANGE[1]}] rad")
+        require(OMEGA_RANGE[0] <= self.omega <= OMEGA_RANGE[1], "omega", self.omega,
+                f"in [{OMEGA_RANGE[0]}, {OMEGA_RANGE[1]}] rad/s")
+        require(LIFT_SPEED_RANGE[0] <= self.lift_speed <= LIFT_SPEED_RANGE[1], "lift_speed",
+                self.lift_speed, f"in [{LIFT_SPEED_RANGE[0]}, {LIFT_SPEED_RANGE[1]}] m/s")
+        require(0 <= self.hold <= 600, "hold", self.hold, "in [0, 600] s")
+        require(0 < self.lift_height <= 0.05, "lift_height", self.lift_height, "in (0, 0.05] m")
+        require(0 <= self.air_hold <= 60, "air_hold", self.air_hold, "in [0, 60] s")
+        require(0.05 <= self.settle <= 5, "settle", self.settle, "in [0.05, 5] s")
+        require(0 < self.slide_distance <= 0.02, "slide_distance", self.slide_distance,
+                "in (0, 0.02] m")
+        require(0 < self.slide_time <= 120, "slide_time", self.slide_time, "in (0, 120] s")
+
+    def to_dict(self) -> dict[str, float]:
+        return dataclasses.asdict(self)
+
+
+@dataclass
+class Profile:
+    """The commanded motion sampled at every physics step."""
+
+    theta: np.ndarray  # [rad] study angle
+    theta_dot: np.ndarray  # [rad/s]
+    lift: np.ndarray  # [m] stage displacement from the approach height (+ up)
+    lift_dot: np.ndarray  # [m/s]
+    phase: np.ndarray  # int codes into PHASES
+    t_clamp_start: float
+
+
+def make_profile(experiment: str, action: FetchAction, dt: float) -> Profile:
+    """Piecewise-linear theta(t) and lift(t) of an experiment, at the physics step."""
+    segments: list[tuple[str, float, float, float]] = []  # (phase, duration, dtheta, dlift)
+    t_clamp = action.theta_d / action.omega
+    segments.append(("settle", action.settle, 0.0, 0.0))
+    segments.append(("clamp", t_clamp, action.theta_d, 0.0))
+    if experiment == "fetch":
+        segments.append(("hold", action.hold, 0.0, 0.0))
+        segments.append(("lift", action.lift_height / action.lift_speed, 0.0,
+                         action.lift_height))
+        segments.append(("air", action.air_hold, 0.0, 0.0))
+    elif experiment == "relaxation":
+        segments.append(("hold", action.hold, 0.0, 0.0))
+    elif experiment == "slip":
+        segments.append(("hold", action.hold, 0.0, 0.0))
+        segments.append(("slide", action.slide_time, 0.0, -action.slide_distance))
+    else:
+        raise InvalidParameterError(f"experiment must be one of {EXPERIMENTS}, got {experiment!r}")
+    ends = np.cumsum([s[1] for s in segments])
+    n = int(math.ceil(ends[-1] / dt - 1e-9))
+    t = np.arange(n) * dt  # time at the start of each step
+    theta = np.zeros(n)
+    theta_dot = np.zeros(n)
+    lift = np.zeros(n)
+    lift_dot = np.zeros(n)
+    phase = np.zeros(n, dtype=np.int8)
+    th0 = z0 = start = 0.0
+    for (name, dur, dth, dz), end in zip(segments, ends, strict=True):
+        sel = (t >= start - 1e-12) & (t < end - 1e-12)
+        frac = np.clip((t[sel] - start) / dur, 0, 1) if dur > 0 else np.zeros(sel.sum())
+        theta[sel] = th0 + dth * frac
+        lift[sel] = z0 + dz * frac
+        if dur > 0:
+            theta_dot[sel] = dth / dur
+            lift_dot[sel] = dz / dur
+        phase[sel] = PHASE_CODE[name]
+        th0, z0, start = th0 + dth, z0 + dz, end
+    return Profile(theta, theta_dot, lift, lift_dot, phase, t_clamp_start=action.settle)
+
+
+@dataclass
+class SimResult:
+    """Everything one experiment produced (SI units); :meth:`to_dict` is the JSON form."""
+
+    experiment: str
+    action: FetchAction
+    scene: dict[str, Any]
+    traces: dict[str, np.ndarray]
+    pieces: list[dict[str, Any]]
+    fetch_rate: float
+    fetch_rate_mass: float
+    geometry: dict[str, float]
+    material: dict[str, Any]
+    wall_time: float
+    n_steps: int
+    timestep: float
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self, traces: bool = True) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "experiment": self.experiment,
+            "fetch_rate": self.fetch_rate,
+            "fetch_rate_mass": self.fetch_rate_mass,
+            "pieces": self.pieces,
+            "material": self.material,
+            "geometry": self.geometry,
+            "action": self.action.to_dict(),
+            "scene": self.scene,
+            "phases": list(PHASES),
+            "timestep": self.timestep,
+            "n_steps": self.n_steps,
+            "wall_time": self.wall_time,
+        }
+        if traces:
+            out["traces"] = {k: v.tolist() for k, v in self.traces.items()}
+        return out
+
+
+def material_summary(pieces: tuple[Piece, ...]) -> dict[str, Any]:
+    """The true material under the CLI's option names (first piece; all, if they differ)."""
+    m = pieces[0].material
+    out: dict[str, Any] = {"young": m.young, "poisson": m.poisson, "density": m.density,
+                           "g1": m.g1, "tau1": m.tau1, "mu": m.mu, "plate_mu": m.plate_mu,
+                           "yield_strain": m.yield_strain, "name": m.name}
+    if len({p.material for p in pieces}) > 1:
+        out["per_piece"] = [p.material.to_dict() for p in pieces]
+    return out
+
+
+class FetchSimulator:
+    """Runs one experiment on one scene.
+
+    Example::
+
+        sim = FetchSimulator(single_block())
+        result = sim.run("fetch", FetchAction(theta_d=0.045))
+    """
+
+    def __init__(self, pieces: tuple[Piece, ...] | list[Piece],
+                 geometry: Geometry | None = None, record_hz: float = 100.0,
+                 timestep: float | None = None) -> None:
+        require_finite("record_hz", record_hz)
+        require(record_hz >= 100, "record_hz", record_hz, ">= 100 Hz")
+        self.pieces = tuple(pieces)
+        self.geometry = geometry or Geometry()
+        self.record_hz = record_hz
+        self.timestep = timestep
+        self._scenes: dict[Geometry, Scene] = {}
+
+    def scene_for(self, experiment: str) -> Scene:
+        """The compiled scene; the slip probe raises the blade tips so they can slide down."""
+        geometry = self.geometry
+        if experiment == "slip":
+            geometry = dataclasses.replace(geometry, tip_clearance=max(
+                geometry.tip_clearance, 0.006))
+        if geometry not in self._scenes:
+            self._scenes[geometry] = build_scene(self.pieces, geometry, self.timestep)
+        return self._scenes[geometry]
+
+    def run(self, experiment: str = "fetch", action: FetchAction | None = None) -> SimResult:
+        """Simulate ``experiment`` with ``action``; validates both before any physics."""
+        require(experiment in EXPERIMENTS, "experiment", experiment, f"one of {EXPERIMENTS}")
+        action = action or FetchAction()
+        require(isinstance(action, FetchAction), "action", action, "a FetchAction")
+        scene = self.scene_for(experiment)
+        if action.theta_d > scene.pose.theta_0 + 0.05:
+            raise InvalidParameterError(
+                f"theta_d must be <= theta_0 + 0.05 = {scene.pose.theta_0 + 0.05:.4f} rad for "
+                f"this scene (blades would cross), got {action.theta_d!r}")
+        return _run(scene, experiment, action, self.record_hz)
+
+
+def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float) -> SimResult:
+    m = scene.model
+    d = initial_state(scene)
+    ids = scene.ids
+    dt = m.opt.timestep
+    profile = make_profile(experiment, action, dt)
+    n = len(profile.theta)
+    every = max(1, int(round(1.0 / (record_hz * dt))))
+    prony = PronyForces(scene)
+    prony.reset(d)
+    strain = StrainMeter(scene, d)
+
+    q_open = -scene.pose.theta_open
+    servos = [ids["servo_left"], ids["servo_right"]]
+    lift_act = ids["servo_lift"]
+    hinge_q = [m.jnt_qposadr[ids["hinge_left"]], m.jnt_qposadr[ids["hinge_right"]]]
+    sensors = ContactSensors(scene)
+    lift_q = m.jnt_qposadr[ids["lift"]]
+    # Velocity feed-forward: the servos are kp (q* - q) - kv qdot, so commanding
+    # q* = q_ref + (kv / kp) qdot_ref makes them track a ramp with no lag.
+    # The target of step i is the reference at its end, t_{i+1}.
+    ahead = np.minimum(np.arange(n) + 1, n - 1)
+    ctrl_hinge = q_open + profile.theta[ahead] + SERVO_TIME_CONSTANT * profile.theta_dot[ahead]
+    ctrl_lift = profile.lift[ahead] + SERVO_TIME_CONSTANT * profile.lift_dot[ahead]
+
+    n_rec = (n + every - 1) // every
+    rec = {k: np.zeros(n_rec) for k in ("t", "theta", "theta_cmd", "moment_left",
+                                         "moment_right", "normal_left", "tangential_left",
+                                         "normal_right", "tangential_right", "lift")}
+    rec["force"] = np.zeros((n_rec, 3))
+    rec["phase"] = np.zeros(n_rec, dtype=np.int8)
+    le_trace = np.zeros((n_rec, len(scene.pieces)))
+    bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
+
+    def fail(why: str) -> SimulationDivergedError:
+        return SimulationDivergedError(f"{why} at t={d.time:.4f} s in {experiment}",
+                                       scene.describe(), action.to_dict())
+
+    wall = time.perf_counter()
+    r = 0
+    for i in range(n):
+        d.ctrl[servos[0]] = ctrl_hinge[i]
+        d.ctrl[servos[1]] = ctrl_hinge[i]
+        d.ctrl[lift_act] = ctrl_lift[i]
+        prony.apply(d)
+        mujoco.mj_step(m, d)
+        if i % every == 0:
+            if d.warning[bad_qacc].number or not np.isfinite(d.qacc).all():
+                raise fail("bad or non-finite acceleration")
+            rec["t"][r] = d.time
+            rec["phase"][r] = profile.phase[i]
+            rec["theta"][r] = 0.5 * (d.qpos[hinge_q[0]] + d.qpos[hinge_q[1]]) - q_open
+            rec["theta_cmd"][r] = profile.theta[min(i + 1, n - 1)]
+            rec["lift"][r] = d.qpos[lift_q]
+            reading = sensors.read(d)
+            for k, side in enumerate(("left", "right")):
+                rec[f"moment_{side}"][r] = reading["moment"][k]
+                rec[f"normal_{side}"][r] = reading["normal"][k]
+                rec[f"tangential_{side}"][r] = reading["tangential"][k]
+            rec["force"][r] = reading["force"]
+            le_trace[r] = strain.piece_strain(d)
+            r += 1
+    wall = time.perf_counter() - wall
+    if not np.isfinite(d.qpos).all():
+        raise fail("non-finite state")
+
+    low, centre = piece_positions(scene, d)
+    masses = np.array([p.mass for p in scene.pieces])
+    half_gap = _blade_half_gap(scene, d)
+    stage_y = scene.pose.stage_xy[1]
+    if experiment == "fetch":
+        fetched = (low > 0.5 * action.lift_height) & (np.abs(centre[:, 1] - stage_y) < half_gap)
+    else:
+        fetched = np.zeros(len(scene.pieces), dtype=bool)
+    phase = rec["phase"]
+    in_clamp = np.isin(phase, [PHASE_CODE["clamp"], PHASE_CODE["hold"], PHASE_CODE["slide"]])
+    in_lift = np.isin(phase, [PHASE_CODE["lift"], PHASE_CODE["air"]])
+    plastic = residual_plastic_strain(scene, d)
+    pieces_out = []
+    for k, p in enumerate(scene.pieces):
+        pieces_out.append({
+            "shape": p.shape, "size": p.size, "mass": p.mass, "young": p.material.young,
+            "fetched": bool(fetched[k]),
+            "max_log_strain_clamp": float(le_trace[in_clamp, k].max()) if in_clamp.any() else 0.0,
+            "max_log_strain_lift": float(le_trace[in_lift, k].max()) if in_lift.any() else 0.0,
+            "residual_plastic_strain": plastic[k],
+            "final_centre": centre[k].tolist(),
+            "final_lowest_z": float(low[k]),
+        })
+    rec["max_log_strain"] = le_trace.max(axis=1)
+    geometry = {"L": scene.pose.L, "theta_0": scene.pose.theta_0,
+                "theta_open": scene.pose.theta_open, "hinge_height": scene.pose.hinge_height,
+                "blade_length": scene.geometry.blade_length,
+                "blade_width": scene.geometry.blade_width,
+                "tip_clearance": scene.geometry.tip_clearance, "gap": scene.geometry.gap}
+    return SimResult(
+        experiment=experiment, action=action, scene=scene.describe(), traces=rec,
+        pieces=pieces_out, fetch_rate=float(fetched.mean()),
+        fetch_rate_mass=float(masses[fetched].sum() / masses.sum()), geometry=geometry,
+        material=material_summary(scene.pieces), wall_time=wall, n_steps=n, timestep=dt,
+        extra={"t_clamp_start": profile.t_clamp_start})
+
+
+def _blade_half_gap(scene: Scene, d: mujoco.MjData) -> float:
+    """Half the distance between the blades' inner faces at the food's centroid height."""
+    q = d.qpos[scene.model.jnt_qposadr[scene.ids["hinge_left"]]]
+    return abs(scene.pose.L * math.tan(-q)) + 1e-3 if q < 0 else 1e-3

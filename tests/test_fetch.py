@@ -1,0 +1,100 @@
+"""The fetch through the robot: statics, servo tracking, bad input, determinism."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator
+from fetch_env.errors import InvalidParameterError
+from fetch_env.layouts import Piece, single_block
+from fetch_env.materials import Material
+from fetch_env.scene import build_scene, initial_state
+
+
+@pytest.fixture(scope="module")
+def fetch_result():
+    return FetchSimulator(single_block()).run("fetch", FetchAction(theta_d=0.045, hold=0.5))
+
+
+def test_soft_cube_is_fetched_and_its_weight_hangs_on_the_end_effector(fetch_result) -> None:
+    r = fetch_result
+    assert r.fetch_rate == 1.0 and r.fetch_rate_mass == 1.0
+    air = r.traces["phase"] == PHASE_CODE["air"]
+    weight = single_block()[0].mass * 9.81
+    # statics: in the air the food's whole weight hangs on the blades (force of the food on
+    # the end-effector points down), and nothing pushes sideways.
+    np.testing.assert_allclose(r.traces["force"][air][-20:, 2].mean(), -weight, rtol=0.01)
+    assert np.abs(r.traces["force"][air][-20:, :2]).max() < 0.01 * weight
+    # symmetric clamp: left and right moments agree in the air
+    np.testing.assert_allclose(r.traces["moment_left"][air][-20:],
+                               r.traces["moment_right"][air][-20:], rtol=0.02)
+
+
+def test_commanded_angle_is_the_real_angle(fetch_result) -> None:
+    tr = fetch_result.traces
+    err = np.abs(tr["theta"] - tr["theta_cmd"])
+    assert err.max() < 2e-4  # rad, anywhere (the ramp's corners: one 5 ms servo transient)
+    assert np.percentile(err, 99) < 5e-5  # rad, under the clamping load
+
+
+def test_gap_left_means_no_fetch() -> None:
+    """theta_d short of first contact: the blades never touch the food."""
+    r = FetchSimulator(single_block()).run("fetch", FetchAction(theta_d=0.01, hold=0.2))
+    assert r.fetch_rate == 0.0
+    assert np.abs(r.traces["moment_left"]).max() == 0.0
+
+
+def test_open_pose_leaves_the_set_gap() -> None:
+    scene = build_scene(single_block())
+    d = initial_state(scene)
+    m = scene.model
+    # distance from each blade's inner face to the nearest food vertex, at the open pose
+    v = d.flexvert_xpos
+    for side, sign in (("left", -1.0), ("right", 1.0)):
+        body = m.geom_bodyid[scene.ids[f"blade_{side}"]]
+        normal_out = sign * d.xmat[body].reshape(3, 3)[:, 1]
+        gap = -((v - d.xpos[body]) @ normal_out).max()
+        np.testing.assert_allclose(gap, 0.001, atol=2e-6)
+
+
+@pytest.mark.parametrize(("field", "value"), [("young", 0.0), ("young", -1.0),
+                                              ("poisson", 0.5), ("poisson", -0.1),
+                                              ("g1", 1.0), ("g1", -0.1), ("tau1", 0.0),
+                                              ("mu", -0.2), ("young", float("nan"))])
+def test_bad_material_names_the_value(field: str, value: float) -> None:
+    with pytest.raises(InvalidParameterError, match=field):
+        Material(**{field: value})
+
+
+@pytest.mark.parametrize(("field", "value"), [("theta_d", float("nan")), ("theta_d", -0.1),
+                                              ("omega", 0.0), ("lift_speed", 5.0)])
+def test_bad_action_names_the_value(field: str, value: float) -> None:
+    with pytest.raises(InvalidParameterError, match=field):
+        FetchAction(**{field: value})
+
+
+def test_overlapping_pieces_are_rejected() -> None:
+    with pytest.raises(InvalidParameterError, match="overlap"):
+        build_scene([Piece("cube", 0.015, x=0.0), Piece("cube", 0.015, x=0.01)])
+
+
+def _trace_digest() -> str:
+    r = FetchSimulator(single_block()).run("fetch", FetchAction(theta_d=0.05, hold=0.2,
+                                                                air_hold=0.2))
+    return json.dumps({k: np.asarray(v).tolist() for k, v in r.traces.items()})
+
+
+def test_bit_identical_twice_in_one_process_and_across_processes() -> None:
+    first = _trace_digest()
+    assert _trace_digest() == first
+    code = ("import tests.test_fetch as t, hashlib; "
+            "print(hashlib.sha256(t._trace_digest().encode()).hexdigest())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    import hashlib
+    assert out == hashlib.sha256(first.encode()).hexdigest()
