@@ -150,7 +150,12 @@ def estimate_friction(
     r0 = np.where(valid, ratio, 0.0)
     mean_w, sd_w = _rolling(r0, w)
     ok_w, _ = _rolling(valid.astype(np.float64), w)
-    steady_w = (ok_w > 1.0 - 1e-12) & (sd_w <= stability * noise_floor)
+    full_w = ok_w > 1.0 - 1e-12
+    # Within-window noise: 2nd differences under-read correlated noise, so also use the median
+    # rolling sd (plateaus -- static and sliding -- fill most of a run).
+    if full_w.any():
+        noise_floor = max(noise_floor, float(np.median(sd_w[full_w])))
+    steady_w = full_w & (sd_w <= stability * noise_floor)
     runs = [(a, b) for a, b in _runs(steady_w) if b - a >= max(w // 2, 2)]
     if not runs:
         raise EstimationError(
@@ -158,8 +163,20 @@ def estimate_friction(
             f"to {stability} x its noise sd {noise_floor:.3g})"
         )
     # Coulomb: T/N equals mu only while sliding and is below it otherwise -> highest plateau.
-    levels = [float(np.median(mean_w[a:b])) for a, b in runs]
-    a, b = runs[int(np.argmax(levels))]
+    # Runs at that level (within noise) separated by short gaps are one plateau: merge them and
+    # take the longest, so that noise cannot pick a short high fragment.
+    levels = np.array([float(np.median(mean_w[a:b])) for a, b in runs])
+    top = float(levels.max())
+    tol = 0.05 * abs(top) + 3.0 * noise_floor / math.sqrt(w)
+    cand = [r for r, lv in zip(runs, levels, strict=True) if lv >= top - tol]
+    merged = [cand[0]]
+    for a, b in cand[1:]:
+        pa, pb = merged[-1]
+        if a - pb <= w and bool(np.all(full_w[pb:a])):
+            merged[-1] = (pa, b)
+        else:
+            merged.append((a, b))
+    a, b = max(merged, key=lambda r: r[1] - r[0])
     # Window starts a..b-1 cover samples a .. b-1+w-1; trim half a window at the front, where
     # the first steady windows can still hold the tail of the onset transient.
     i0 = min(a + w // 2, b - 1)
@@ -176,6 +193,18 @@ def estimate_friction(
         i0 += bs
     sel = slice(i0, i1)
     N_w, T_w = n_tot[sel], t_tot[sel]
+    # A steady slide has no trend: reject a ratio that keeps drifting across the window.
+    tw, rw = tt[sel], ratio[sel]
+    slope, icpt = np.polyfit(tw - tw[0], rw, 1)
+    span = float(tw[-1] - tw[0])
+    drift = abs(float(slope)) * span
+    fit_sd = float(np.std(rw - (icpt + slope * (tw - tw[0])), ddof=2)) if rw.size > 2 else 0.0
+    se_drift = fit_sd * math.sqrt(12.0 / max(rw.size, 1))  # se of slope * span, white noise
+    if drift > 0.02 * abs(float(np.mean(rw))) and drift > 4.0 * se_drift:
+        raise EstimationError(
+            f"no steady slip: the tangential/normal ratio never plateaus (it drifts by "
+            f"{drift:.3g} over the steadiest window t=[{tw[0]:.6g}, {tw[-1]:.6g}] s)"
+        )
     mu = float(T_w.sum() / N_w.sum())
     e = T_w - mu * N_w
     m = e.size
