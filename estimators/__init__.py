@@ -1,4 +1,37 @@
 """Estimators of food viscoelasticity (K1, K2, B) and friction (mu) from sensor traces.
 
 Pure numpy/scipy: never imports MuJoCo, so the same code runs on a real robot's logs.
+
+Modules (units: s, rad, m, N, N m; see PAPER.md for eqs. 1-7):
+
+* :mod:`estimators.sls` -- standard linear solid in the half-spoon's rotational form:
+  :class:`ClampGeometry`, :class:`SLSParams` (with Prony ``g1, tau1`` conversion) and the forward
+  model :func:`moment_trace` (exact closed form, integrating-factor quadrature, ``solve_ivp``).
+* :mod:`estimators.relaxation` -- ``K1, K2, B`` from one clamp-and-hold:
+  :func:`estimate_three_step` (the study's method) and :func:`estimate_full_fit` (one least-squares
+  fit of the whole trace with 95 % intervals); both return :class:`ViscoelasticEstimate`.
+* :mod:`estimators.friction` -- ``mu`` by induced slippage: :func:`estimate_friction`.
+* :mod:`estimators.errors` -- :class:`EstimationError` (a ``ValueError``) for unusable input.
 """
+
+from estimators.errors import EstimationError
+from estimators.friction import FrictionEstimate, estimate_friction
+from estimators.relaxation import (
+    ViscoelasticEstimate,
+    estimate_full_fit,
+    estimate_three_step,
+)
+from estimators.sls import ClampGeometry, SLSParams, moment_trace, steady_moment
+
+__all__ = [
+    "ClampGeometry",
+    "EstimationError",
+    "FrictionEstimate",
+    "SLSParams",
+    "ViscoelasticEstimate",
+    "estimate_friction",
+    "estimate_full_fit",
+    "estimate_three_step",
+    "moment_trace",
+    "steady_moment",
+]

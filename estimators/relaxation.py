@@ -748,8 +748,9 @@ def estimate_full_fit(
     half = np.array([(intervals[k][1] - intervals[k][0]) / 2 for k in ("K1", "K2", "B")])
     reliable &= _reliability(hf, tau1, vals, half, warns, r2_clamp)
     m_peak = float(
-        moment_trace(np.array([kin.t_d]), params, geometry, th1, kin.theta_d, kin.omega,
-                     kin.t_start)[0]
+        moment_trace(
+            np.array([kin.t_d]), params, geometry, th1, kin.theta_d, kin.omega, kin.t_start
+        )[0]
     )
     return ViscoelasticEstimate(
         K1=k1,

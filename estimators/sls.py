@@ -173,9 +173,7 @@ def steady_moment(
     return k1 * L**2 * (np.sin(th0 - theta_1) - np.sin(th0 - theta_d)) / np.cos(th0 - theta_d)
 
 
-def _check_clamp(
-    geometry: ClampGeometry, theta_1: float, theta_d: float, omega: float
-) -> None:
+def _check_clamp(geometry: ClampGeometry, theta_1: float, theta_d: float, omega: float) -> None:
     if not (np.isfinite(omega) and omega > 0.0):
         raise EstimationError(
             f"clamping velocity omega must be finite and > 0 rad/s, got {omega!r}"

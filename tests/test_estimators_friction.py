@@ -116,8 +116,10 @@ def test_no_plateau_raises() -> None:
     [
         (lambda a: [x[:10] for x in a], "too short"),
         (lambda a: [a[0], a[1][:-1], *a[2:]], "mismatched lengths.*'normal_left'"),
-        (lambda a: [a[0], a[1], a[2], a[3], np.where(a[0] > 15, np.nan, a[4])],
-         "'tangential_right' has .* non-finite"),
+        (
+            lambda a: [a[0], a[1], a[2], a[3], np.where(a[0] > 15, np.nan, a[4])],
+            "'tangential_right' has .* non-finite",
+        ),
         (lambda a: [a[0], np.where(a[0] > 15, np.inf, a[1]), *a[2:]], "'normal_left'.*non-finite"),
         (lambda a: [a[0][::-1], *a[1:]], "unsorted"),
         (lambda a: [np.round(a[0], 1), *a[1:]], "repeated"),

@@ -93,7 +93,7 @@ def test_kinematics_and_contact_detection() -> None:
 
 
 def test_hold_fit_recovers_eq6() -> None:
-    t, theta, m = make_trace(0.02, 0.05, 15.0)
+    t, _, m = make_trace(0.02, 0.05, 15.0)
     hf = fit_hold_relaxation(t, m, 0.05 / 0.02)
     assert hf.relaxes
     assert_allclose(hf.lam, 1.0 / 3.667, rtol=1e-8)
@@ -126,9 +126,7 @@ def test_full_fit_with_noise_fast() -> None:
     assert np.all(np.median(errs, axis=0) < 0.01)
 
 
-@pytest.mark.parametrize(
-    ("omega", "theta_d", "hold"), [(0.01, 0.0244, 10.0), (0.1, 0.09, 10.0)]
-)
+@pytest.mark.parametrize(("omega", "theta_d", "hold"), [(0.01, 0.0244, 10.0), (0.1, 0.09, 10.0)])
 def test_full_fit_with_noise_100_trials(omega, theta_d, hold) -> None:
     """100 seeded trials (~1 s): within 2 % in >= 90 trials, intervals cover >= 90 / 100."""
     errs, covered = _noisy_trials(omega, theta_d, hold, 100)
@@ -180,7 +178,7 @@ class TestBadInputs:
 
     def test_mismatched_lengths(self, estimator, good) -> None:
         t, theta, m = good
-        with pytest.raises(EstimationError, match="mismatched lengths.*'M'"):
+        with pytest.raises(EstimationError, match=r"mismatched lengths.*'M'"):
             estimator(t, theta, m[:-3], GEOM)
 
     @pytest.mark.parametrize("bad", [np.nan, np.inf])
@@ -188,7 +186,7 @@ class TestBadInputs:
         t, theta, m = good
         m = m.copy()
         m[500] = bad
-        with pytest.raises(EstimationError, match="'M' has 1 non-finite.*index 500"):
+        with pytest.raises(EstimationError, match=r"'M' has 1 non-finite.*index 500"):
             estimator(t, theta, m, GEOM)
         theta = theta.copy()
         theta[7] = bad
