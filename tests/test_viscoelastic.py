@@ -69,7 +69,7 @@ def test_step_relaxation_of_the_lagged_state_is_exponential() -> None:
     prony.lagged[:] = 0.0  # the rest state: a step strain applied now
     qpos = d.qpos.copy()
     dt = scene.model.opt.timestep
-    steps = int(round(tau1 / dt))
+    steps = round(tau1 / dt)
     for _ in range(steps):
         d.qpos[:] = qpos  # hold the deformation exactly
         mujoco.mj_kinematics(scene.model, d)
