@@ -1,0 +1,161 @@
+"""Scenes for the Gymnasium environments: what each id samples at reset, and named presets.
+
+Every random choice is drawn from the generator passed in (the env's ``np_random``), so a seed
+fixes the scene.  The ranges are module constants so that the environment docstrings, the
+tests and the agents read the same numbers.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from fetch_env.errors import InvalidParameterError
+from fetch_env.layouts import SHAPES, Piece, diced_mix, grid, single_block, single_row, two_rows
+from fetch_env.materials import PRESETS, STUDY_LEVELS, Material
+
+LAYOUTS: tuple[str, ...] = ("block", "row", "two_rows", "diced")
+
+# Material ranges sampled for Block and Row scenes (one material per scene).  Young's modulus
+# is log-uniform over the soft-to-firm foods the study calls food-like (agar, radish, carrot,
+# gummy candy); 200 MPa "hard" pieces appear in TwoRows and Diced, as in the study.
+YOUNG_RANGE = (0.05e6, 5e6)  # [Pa], log-uniform
+POISSON_RANGE = (0.25, 0.45)  # [-]
+DENSITY_RANGE = (950.0, 1150.0)  # [kg/m^3]
+G1_RANGE = (0.2, 0.6)  # [-]
+TAU1_RANGE = (1.0, 6.0)  # [s], log-uniform
+MU_RANGE = (0.15, 0.6)  # [-] half-spoon/food friction
+PLATE_MU = 0.1  # [-] the study keeps the plate slippery
+
+BLOCK_SIZE_RANGE = (0.010, 0.020)  # [m] nominal size of the single piece
+ROW_N_RANGE = (2, 3)  # pieces in the row, inclusive
+ROW_SIZE_RANGE = (0.010, 0.013)  # [m] cube edge
+ROW_SPACINGS = (0.001, 0.0005, 0.0003, 0.0001)  # [m] across the clamp: the study's four
+TWO_ROWS_N_RANGE = (2, 3)  # pieces per row, inclusive
+TWO_ROWS_SIZE_RANGE = (0.010, 0.012)  # [m]
+TWO_ROWS_SPACING_ALONG = 0.001  # [m] the study's
+TWO_ROWS_SPACING_ACROSS = 0.00001  # [m] the study's 0.01 mm
+TWO_ROWS_MATERIALS = ("hard-200MPa", "soft-0.2MPa")  # drawn with equal chance
+DICED_N_RANGE = (4, 8)  # pieces, inclusive; kept small so an episode stays near one second
+DICED_SIZE_RANGE = (0.007, 0.010)  # [m]
+
+SAMPLING: dict[str, dict[str, Any]] = {
+    "block": {"shape": SHAPES, "size_m": BLOCK_SIZE_RANGE, "young_pa": YOUNG_RANGE,
+              "poisson": POISSON_RANGE, "density": DENSITY_RANGE, "g1": G1_RANGE,
+              "tau1_s": TAU1_RANGE, "mu": MU_RANGE},
+    "row": {"n": ROW_N_RANGE, "size_m": ROW_SIZE_RANGE, "spacing_across_m": ROW_SPACINGS,
+            "material": "as block"},
+    "two_rows": {"n_per_row": TWO_ROWS_N_RANGE, "size_m": TWO_ROWS_SIZE_RANGE,
+                 "spacing_along_m": TWO_ROWS_SPACING_ALONG,
+                 "spacing_across_m": TWO_ROWS_SPACING_ACROSS, "material": TWO_ROWS_MATERIALS},
+    "diced": {"n": DICED_N_RANGE, "size_m": DICED_SIZE_RANGE, "material": STUDY_LEVELS,
+              "shape": SHAPES},
+}
+
+
+def _log_uniform(rng: np.random.Generator, lo: float, hi: float) -> float:
+    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def sample_material(rng: np.random.Generator) -> Material:
+    """One food material from the documented ranges (Block and Row scenes)."""
+    return Material(young=_log_uniform(rng, *YOUNG_RANGE),
+                    poisson=float(rng.uniform(*POISSON_RANGE)),
+                    density=float(rng.uniform(*DENSITY_RANGE)),
+                    g1=float(rng.uniform(*G1_RANGE)),
+                    tau1=_log_uniform(rng, *TAU1_RANGE),
+                    mu=float(rng.uniform(*MU_RANGE)), plate_mu=PLATE_MU, name="sampled")
+
+
+def sample_scene(layout: str, rng: np.random.Generator) -> tuple[Piece, ...]:
+    """Draw a scene of ``layout`` from the documented ranges, using only ``rng``."""
+    if layout == "block":
+        shape = str(rng.choice(SHAPES))
+        size = float(rng.uniform(*BLOCK_SIZE_RANGE))
+        return (Piece(shape, size, sample_material(rng)),)  # type: ignore[arg-type]
+    if layout == "row":
+        n = int(rng.integers(ROW_N_RANGE[0], ROW_N_RANGE[1] + 1))
+        size = float(rng.uniform(*ROW_SIZE_RANGE))
+        spacing = float(rng.choice(ROW_SPACINGS))
+        return single_row(spacing_across=spacing, n=n, size=size, material=sample_material(rng))
+    if layout == "two_rows":
+        n = int(rng.integers(TWO_ROWS_N_RANGE[0], TWO_ROWS_N_RANGE[1] + 1))
+        size = float(rng.uniform(*TWO_ROWS_SIZE_RANGE))
+        mat = PRESETS[str(rng.choice(TWO_ROWS_MATERIALS))]
+        return two_rows(material=mat, n=n, size=size, spacing_along=TWO_ROWS_SPACING_ALONG,
+                        spacing_across=TWO_ROWS_SPACING_ACROSS)
+    if layout == "diced":
+        n = int(rng.integers(DICED_N_RANGE[0], DICED_N_RANGE[1] + 1))
+        return diced_mix(rng, n_pieces=n, size_range=DICED_SIZE_RANGE)
+    raise InvalidParameterError(f"layout must be one of {LAYOUTS}, got {layout!r}")
+
+
+def _diced(materials: tuple[str, ...], seed: int, n: int) -> Callable[[], tuple[Piece, ...]]:
+    # A fixed generator: a preset must give the same pieces every time.
+    return lambda: diced_mix(np.random.default_rng(seed), n_pieces=n, materials=materials,
+                             size_range=DICED_SIZE_RANGE)
+
+
+# The study's scenes (PAPER.md, "Setups the study simulated"), by name for reset(options=...).
+SCENE_PRESETS: Mapping[str, Callable[[], tuple[Piece, ...]]] = {
+    "block": lambda: single_block(),
+    "block-hard": lambda: single_block(material=PRESETS["hard-200MPa"]),
+    "block-ellipsoid": lambda: single_block("ellipsoid"),
+    "block-sphere": lambda: single_block("sphere"),
+    **{f"row-{s * 1000:g}mm": (lambda s=s: single_row(spacing_across=s))
+       for s in ROW_SPACINGS},
+    "two-rows-soft": lambda: two_rows(material=PRESETS["soft-0.2MPa"]),
+    "two-rows-hard": lambda: two_rows(material=PRESETS["hard-200MPa"]),
+    "diced-soft": _diced(("soft-0.15MPa",), seed=0, n=6),
+    "diced-mix": _diced(STUDY_LEVELS, seed=0, n=6),
+}
+
+
+def preset_scene(name: str) -> tuple[Piece, ...]:
+    """The pieces of a named preset; the error lists the valid names."""
+    if name not in SCENE_PRESETS:
+        raise InvalidParameterError(
+            f"unknown scene preset {name!r}; choose from {', '.join(SCENE_PRESETS)}")
+    return SCENE_PRESETS[name]()
+
+
+def grid_scene(n_along: int, n_across: int, size: float, spacing_along: float,
+               spacing_across: float, material: str) -> tuple[Piece, ...]:
+    """A grid of cubes of a preset material (used by the reproduction command)."""
+    return grid(n_along, n_across, size, spacing_along, spacing_across, PRESETS[material])
+
+
+def layout_features(pieces: tuple[Piece, ...]) -> dict[str, float]:
+    """What a camera over the plate would tell: count, sizes, spacing, mass (SI units).
+
+    Spacing is the smallest gap between the footprints of two neighbouring pieces, across
+    the clamp (x) and along it (y); pieces that do not overlap in the other direction are
+    not neighbours there.  With one piece both spacings are reported as ``NO_NEIGHBOUR``.
+    """
+    ext = np.array([p.extents for p in pieces])
+    xy = np.array([[p.x, p.y] for p in pieces])
+    across, along = NO_NEIGHBOUR, NO_NEIGHBOUR
+    for i in range(len(pieces)):
+        for j in range(i + 1, len(pieces)):
+            gap = np.abs(xy[i] - xy[j]) - (ext[i, :2] + ext[j, :2]) / 2
+            if gap[1] < 0:  # side by side across the clamp (overlapping in y)
+                across = min(across, max(float(gap[0]), 0.0))
+            if gap[0] < 0:  # one behind the other along the clamp
+                along = min(along, max(float(gap[1]), 0.0))
+    lo = xy - ext[:, :2] / 2
+    hi = xy + ext[:, :2] / 2
+    return {
+        "n_pieces": float(len(pieces)),
+        "mean_size": float(np.mean([p.size for p in pieces])),
+        "max_height": float(ext[:, 2].max()),
+        "min_spacing_across": across,
+        "min_spacing_along": along,
+        "span_along": float(hi[:, 1].max() - lo[:, 1].min()),
+        "total_mass": float(sum(p.mass for p in pieces)),
+    }
+
+
+NO_NEIGHBOUR = 0.005  # [m] spacing reported when no neighbour exists (5 mm: "far")

@@ -1,0 +1,187 @@
+"""The environments' action and observation spaces: names, scaling, encode and decode.
+
+Actions are ``Box(-1, 1, (3,))`` mapped linearly onto physical ranges; observations are
+estimated food properties and camera features, each mapped to order one either linearly
+(``value / scale``) or logarithmically (``log10(value / scale)``, for the spring and dashpot
+constants, which span five decades between the softest and the hardest food).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+import numpy as np
+
+from fetch_env.errors import InvalidParameterError
+
+# --------------------------------------------------------------------------------------------
+# actions
+
+ACTION_NAMES: tuple[str, ...] = ("theta_d", "omega", "lift_speed")
+ACTION_RANGES: dict[str, tuple[float, float]] = {
+    "theta_d": (0.02, 0.12),  # [rad] clamp angle from the open pose; study: 0.0244 to 0.09
+    "omega": (0.01, 0.4),  # [rad/s] clamping angular velocity; study: 0.01 to 0.4
+    "lift_speed": (0.004, 0.04),  # [m/s] lifting speed; study: 4 to 40 mm/s
+}
+_ACT_LO = np.array([ACTION_RANGES[k][0] for k in ACTION_NAMES])
+_ACT_HI = np.array([ACTION_RANGES[k][1] for k in ACTION_NAMES])
+
+
+def check_action(action: Any) -> np.ndarray:
+    """The action as a float64 (3,) array; raises naming the value if NaN/inf or misshaped.
+
+    Finite values outside [-1, 1] are clipped (as SB3 does for its policies).
+    """
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidParameterError(
+            f"action must be 3 numbers in [-1, 1] (theta_d, omega, lift_speed), got {action!r}"
+        ) from None
+    if a.shape != (3,):
+        raise InvalidParameterError(
+            f"action must have shape (3,) (theta_d, omega, lift_speed), got shape {a.shape}: "
+            f"{action!r}")
+    if not np.isfinite(a).all():
+        raise InvalidParameterError(f"action must be finite, got {action!r}")
+    return np.clip(a, -1.0, 1.0)
+
+
+def action_to_physical(action: Any) -> dict[str, float]:
+    """Map an action in [-1, 1]^3 linearly onto ``ACTION_RANGES`` (SI units)."""
+    a = check_action(action)
+    phys = _ACT_LO + (a + 1.0) / 2.0 * (_ACT_HI - _ACT_LO)
+    return {k: float(v) for k, v in zip(ACTION_NAMES, phys, strict=True)}
+
+
+def physical_to_action(theta_d: float, omega: float, lift_speed: float) -> np.ndarray:
+    """The action (float32, (3,)) that maps to these physical values; raises if out of range."""
+    phys = np.array([theta_d, omega, lift_speed], dtype=np.float64)
+    for name, v, lo, hi in zip(ACTION_NAMES, phys, _ACT_LO, _ACT_HI, strict=True):
+        if not (np.isfinite(v) and lo - 1e-12 <= v <= hi + 1e-12):
+            raise InvalidParameterError(f"{name} must be in [{lo}, {hi}], got {v!r}")
+    return np.clip(2.0 * (phys - _ACT_LO) / (_ACT_HI - _ACT_LO) - 1.0, -1, 1).astype(np.float32)
+
+
+# --------------------------------------------------------------------------------------------
+# observations
+
+# name -> (transform, scale, unit).  Parameter features come first; each group of estimated
+# parameters has a validity flag (1: a number the estimator stands behind or the oracle's,
+# 0: not available, the feature is then 0).
+OBS_SPEC: dict[str, tuple[str, float, str]] = {
+    "K1": ("log10", 1e3, "N/m"),
+    "K2": ("log10", 1e3, "N/m"),
+    "B": ("log10", 1e4, "N s/m"),
+    "mu": ("linear", 1.0, "-"),
+    "g1": ("linear", 1.0, "-"),
+    "tau1": ("linear", 5.0, "s"),
+    "visco_valid": ("linear", 1.0, "flag"),
+    "friction_valid": ("linear", 1.0, "flag"),
+    "n_pieces": ("linear", 10.0, "count"),
+    "mean_size": ("linear", 0.015, "m"),
+    "max_height": ("linear", 0.015, "m"),
+    "min_spacing_across": ("linear", 0.001, "m"),
+    "min_spacing_along": ("linear", 0.001, "m"),
+    "span_along": ("linear", 0.03, "m"),
+    "total_mass": ("linear", 0.005, "kg"),
+}
+OBS_NAMES: tuple[str, ...] = tuple(OBS_SPEC)
+OBS_SCALE: dict[str, float] = {k: v[1] for k, v in OBS_SPEC.items()}
+OBS_TRANSFORM: dict[str, str] = {k: v[0] for k, v in OBS_SPEC.items()}
+OBS_UNITS: dict[str, str] = {k: v[2] for k, v in OBS_SPEC.items()}
+VISCO_NAMES: tuple[str, ...] = ("K1", "K2", "B", "g1", "tau1")
+FRICTION_NAMES: tuple[str, ...] = ("mu",)
+OBS_BOUND = 10.0  # every feature is clipped to [-OBS_BOUND, OBS_BOUND]
+
+
+def _encode_one(name: str, value: float) -> float:
+    transform, scale, _ = OBS_SPEC[name]
+    if transform == "log10":
+        return math.log10(value / scale)
+    return value / scale
+
+
+def encode_observation(values: Mapping[str, float]) -> np.ndarray:
+    """SI values -> the float32 observation.  Estimated parameters that are NaN, not positive
+    (log features) or outside the bounds after scaling are reported as 0 with their group's
+    flag cleared, so a wild estimate never reaches the policy as a huge number."""
+    obs = np.zeros(len(OBS_NAMES), dtype=np.float64)
+    flags = {"visco_valid": float(values.get("visco_valid", 0.0)),
+             "friction_valid": float(values.get("friction_valid", 0.0))}
+    for group, names in (("visco_valid", VISCO_NAMES), ("friction_valid", FRICTION_NAMES)):
+        if not flags[group]:
+            continue
+        enc = {}
+        for n in names:
+            v = float(values[n])
+            ok = math.isfinite(v) and (v > 0 or OBS_TRANSFORM[n] == "linear")
+            e = _encode_one(n, v) if ok else math.nan
+            if not (math.isfinite(e) and abs(e) <= OBS_BOUND):
+                flags[group] = 0.0
+                break
+            enc[n] = e
+        else:
+            for n, e in enc.items():
+                obs[OBS_NAMES.index(n)] = e
+    for i, n in enumerate(OBS_NAMES):
+        if n in flags:
+            obs[i] = flags[n]
+        elif n not in VISCO_NAMES and n not in FRICTION_NAMES:
+            obs[i] = _encode_one(n, float(values[n]))
+    return np.clip(obs, -OBS_BOUND, OBS_BOUND).astype(np.float32)
+
+
+def decode_observation(obs: Any) -> dict[str, float]:
+    """The observation back in SI units (see ``OBS_UNITS``); estimated parameters whose
+    validity flag is 0 decode to NaN."""
+    o = np.asarray(obs, dtype=np.float64)
+    if o.shape != (len(OBS_NAMES),):
+        raise InvalidParameterError(
+            f"observation must have shape ({len(OBS_NAMES)},), got {o.shape}")
+    out: dict[str, float] = {}
+    for i, n in enumerate(OBS_NAMES):
+        transform, scale, _ = OBS_SPEC[n]
+        out[n] = float(10.0 ** o[i] * scale if transform == "log10" else o[i] * scale)
+    for group, names in (("visco_valid", VISCO_NAMES), ("friction_valid", FRICTION_NAMES)):
+        if out[group] < 0.5:
+            for n in names:
+                out[n] = math.nan
+    return out
+
+
+class Traces(Mapping[str, np.ndarray]):
+    """Read-only mapping of trace name -> array, as ``info["traces"]``.
+
+    Not a ``dict`` on purpose: Gymnasium's vector envs stack dict-valued infos key by key and
+    fail on arrays whose length differs between sub-environments (the traces' length depends
+    on the action); any other object is kept whole per sub-environment.
+    """
+
+    def __init__(self, traces: Mapping[str, np.ndarray]) -> None:
+        self._data = {k: np.asarray(v) for k, v in traces.items()}
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        return self._data[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Traces):
+            return NotImplemented
+        return self._data.keys() == other._data.keys() and all(
+            a.shape == other._data[k].shape and np.array_equal(a, other._data[k])
+            for k, a in self._data.items())
+
+    def __hash__(self) -> int:  # mutable contents by reference: identity hash
+        return id(self)
+
+    def __repr__(self) -> str:
+        n = len(next(iter(self._data.values()))) if self._data else 0
+        return f"Traces({', '.join(self._data)}; {n} samples)"
