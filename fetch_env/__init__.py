@@ -1,0 +1,25 @@
+"""food-fetch: MuJoCo simulator and Gymnasium environments of a two-half-spoon feeding robot.
+
+Importing the package registers the environments (string entry points, so MuJoCo is loaded
+only when an env is made)::
+
+    import gymnasium as gym
+    import fetch_env  # noqa: F401  (or gym.make("fetch_env:FoodFetch-Block-v0"))
+    env = gym.make("FoodFetch-Block-v0", estimator="oracle")
+"""
+
+from __future__ import annotations
+
+from gymnasium.envs.registration import register, registry
+
+# id -> entry point; every id is one fetch per episode (docstrings in fetch_env/env.py).
+ENV_IDS: dict[str, str] = {
+    "FoodFetch-Block-v0": "fetch_env.env:FoodFetchBlockEnv",
+    "FoodFetch-Row-v0": "fetch_env.env:FoodFetchRowEnv",
+    "FoodFetch-TwoRows-v0": "fetch_env.env:FoodFetchTwoRowsEnv",
+    "FoodFetch-Diced-v0": "fetch_env.env:FoodFetchDicedEnv",
+}
+
+for _id, _entry in ENV_IDS.items():
+    if _id not in registry:  # re-importing (e.g. in a forked worker) must not warn
+        register(id=_id, entry_point=_entry, disable_env_checker=False)

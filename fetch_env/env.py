@@ -1,0 +1,561 @@
+"""Gymnasium environments: one fetch attempt per episode, with probe-estimated food properties.
+
+``FoodFetchEnv`` is the general class (``layout=`` picks the scene family); the registered ids
+use the per-layout subclasses below, whose docstrings are the reference for each id.
+Helpers for agents (all importable from ``fetch_env.env``): ``ACTION_RANGES``,
+``action_to_physical``, ``physical_to_action``, ``OBS_NAMES``, ``OBS_SCALE``,
+``OBS_TRANSFORM``, ``decode_observation``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import OrderedDict
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from fetch_env.controller import FetchAction, FetchSimulator, SimResult
+from fetch_env.env_scenes import (
+    LAYOUTS,
+    SAMPLING,
+    SCENE_PRESETS,
+    layout_features,
+    preset_scene,
+    sample_scene,
+)
+from fetch_env.errors import InvalidParameterError, SimulationDivergedError, require
+from fetch_env.layouts import Piece
+from fetch_env.probes import (
+    PARAM_NAMES,
+    ProbeConfig,
+    ProbeOutcome,
+    probe_piece_index,
+    run_probes,
+    true_parameters,
+)
+from fetch_env.render import EpisodeRenderer
+from fetch_env.spaces import (
+    ACTION_NAMES,
+    ACTION_RANGES,
+    OBS_BOUND,
+    OBS_NAMES,
+    OBS_SCALE,
+    OBS_TRANSFORM,
+    OBS_UNITS,
+    Traces,
+    action_to_physical,
+    check_action,
+    decode_observation,
+    encode_observation,
+    physical_to_action,
+)
+
+__all__ = [
+    "ACTION_NAMES",
+    "ACTION_RANGES",
+    "ESTIMATORS",
+    "OBS_NAMES",
+    "OBS_SCALE",
+    "OBS_TRANSFORM",
+    "OBS_UNITS",
+    "FoodFetchBlockEnv",
+    "FoodFetchDicedEnv",
+    "FoodFetchEnv",
+    "FoodFetchRowEnv",
+    "FoodFetchTwoRowsEnv",
+    "action_to_physical",
+    "decode_observation",
+    "physical_to_action",
+]
+
+ESTIMATORS: tuple[str, ...] = ("model", "oracle", "none")
+RESET_OPTIONS: tuple[str, ...] = ("preset", "pieces")
+_CACHE_SIZE = 8  # compiled scenes (and probe outcomes) kept per env, least recently used out
+
+
+class _LRU(OrderedDict):
+    def get_or(self, key: Any, make: Any) -> Any:
+        if key in self:
+            self.move_to_end(key)
+            return self[key]
+        value = self[key] = make()
+        while len(self) > _CACHE_SIZE:
+            self.popitem(last=False)
+        return value
+
+
+_COMMON_DOC = """
+    ## Action space
+    ``Box(-1, 1, (3,), float32)``, mapped linearly onto (values outside [-1, 1] are clipped;
+    NaN, infinities or another shape raise ``InvalidParameterError``):
+
+    | index | name | low | high | unit | meaning |
+    |---|---|---|---|---|---|
+    | 0 | theta_d | {theta_d[0]} | {theta_d[1]} | rad | clamp angle from the open pose |
+    | 1 | omega | {omega[0]} | {omega[1]} | rad/s | clamping angular velocity |
+    | 2 | lift_speed | {lift_speed[0]} | {lift_speed[1]} | m/s | lifting speed |
+
+    ``action_to_physical(a)`` and ``physical_to_action(theta_d, omega, lift_speed)`` convert.
+    theta_d is capped just short of the angle at which the half-spoons' tips meet for the
+    scene (``info["action_applied"]`` has what was run).
+
+    ## Observation space
+    ``Box(-{bound}, {bound}, ({n_obs},), float32)``. Feature ``i`` is ``value / scale`` (linear) or
+    ``log10(value / scale)`` (log10); ``decode_observation(obs)`` returns SI values (NaN for
+    parameters whose flag is 0). K1..tau1 and mu are the probed piece's (the piece nearest
+    the layout's centre); the rest is what a camera over the plate tells.
+
+    | index | name | transform | scale | unit |
+    |---|---|---|---|---|
+{obs_table}
+
+    ``estimator="model"``: K1, K2, B, g1, tau1 from ``estimators.estimate_full_fit`` (falling
+    back to ``estimate_three_step``) on the moment of a reset probe (clamp to a small strain,
+    hold ``probe_hold``), mu from ``estimators.estimate_friction`` on an induced-slip probe;
+    a failed estimate gives 0 and a cleared flag. ``"oracle"``: the true values (g1, tau1, mu
+    of the material exactly; K1, K2, B nominal, ``K = 2 E A / l`` split by g1, see
+    ``fetch_env.probes.nominal_stiffness``). ``"none"``: zeros, flags 0 (the ablation).
+
+    ## Rewards
+    ``reward = reward_fetch + reward_deformation + reward_time`` (each in ``info``):
+
+    - ``reward_fetch = fetch_weight * fetch_rate`` (share of pieces lifted and held; by mass
+      with ``fetch_by_mass=True``); 0 when the simulation diverged.
+    - ``reward_deformation = -deformation_weight * min(1, max(0, LE_max - safe_log_strain))``,
+      LE_max the largest logarithmic strain of any piece during the clamp, hold and lift (the
+      study calls LE < 0.34 no large deformation).
+    - ``reward_time = -time_weight * (theta_d / omega + hold + lift_height / lift_speed)`` [s].
+
+    ## Starting state
+    At reset the scene is drawn with the env's seeded generator (``reset(seed=...)``) from the
+    ranges above, or pinned with ``reset(options={{"preset": name}})`` (names:
+    ``fetch_env.env_scenes.SCENE_PRESETS``: {presets}) or
+    ``reset(options={{"pieces": [Piece, ...]}})``. The pieces settle on the plate with the
+    half-spoons open, then the probes run (``estimator="model"`` only).
+
+    ## Episode end
+    One step is one fetch (settle, clamp to theta_d at omega, hold, lift ``lift_height`` at
+    lift_speed, hold in the air): every step terminates the episode (``terminated=True``,
+    never truncated). A diverged simulation ends the episode too, with ``info["error"]`` and
+    no fetch reward; the next ``reset()`` works. Stepping a finished episode raises.
+
+    ## Info
+    reset: ``true_params``, ``estimated_params`` (SI, NaN if not identified), ``probe_piece``,
+    ``probe_warnings``, ``pieces`` (scene description), ``hold``.
+    step: also ``reward_fetch``, ``reward_deformation``, ``reward_time``, ``fetch_rate``,
+    ``fetch_rate_mass``, ``max_log_strain``, ``is_success`` (every piece fetched and
+    LE_max <= safe_log_strain), ``pieces`` (per-piece outcome), ``action_applied`` (SI),
+    ``episode_time`` [s], ``traces`` (read-only mapping of 100 Hz arrays: t, phase, theta,
+    theta_cmd, moment_left/right, normal_left/right, tangential_left/right, force (n, 3),
+    lift, max_log_strain) and ``error`` when the physics diverged.
+
+    For per-scene search agents: ``env.unwrapped.pieces`` (the scene's tuple of ``Piece``) and
+    ``env.unwrapped.simulate_action(action) -> (reward, info)``, which runs a fetch on the
+    current scene without changing the env's state (same numbers as ``step``).
+
+    ## Arguments
+    | argument | default | meaning |
+    |---|---|---|
+    | layout | "{layout}" | scene family: {layouts} |
+    | estimator | "model" | "model", "oracle" or "none" (see Observation space) |
+    | fetch_weight | 1.0 | weight of the fetch rate |
+    | deformation_weight | 5.0 | penalty per unit of LE above safe_log_strain |
+    | safe_log_strain | 0.34 | LE below which there is no penalty |
+    | time_weight | 0.0 | cost per second of clamp, hold and lift |
+    | fetch_by_mass | False | reward the fetched mass share instead of the count share |
+    | hold | 0.5 | hold at theta_d before lifting [s] |
+    | lift_at_settling | False | hold until the estimated moment settling time t_s instead |
+    | settling_tolerance | 0.1 | t_s: relaxing part of M within this share of M_inf |
+    | max_hold | 5.0 | cap on the settling hold [s] |
+    | lift_height | 0.005 | lift distance [m] |
+    | air_hold | 0.5 | hold in the air before counting fetched pieces [s] |
+    | settle | 0.2 | settling on the plate before the clamp [s] |
+    | probe_hold | 1.0 | relaxation probe hold [s] |
+    | probe_omega | 0.1 | probes' clamping angular velocity [rad/s] |
+    | probe_strain | 0.03 | relaxation probe's target squeeze (share of the width) |
+    | render_mode | None | None, "rgb_array", "rgb_array_list" or "human" |
+    | width | 480 | frame width [px] |
+    | height | 360 | frame height [px] |
+    | camera | "side" | camera name in the base scene ("side" or "front") |
+
+    ``render_mode="rgb_array"`` gives the latest frame; ``"rgb_array_list"`` every frame
+    since the last ``render()`` call at ``metadata["render_fps"]``, i.e. the whole clamp and
+    lift (use it with ``gymnasium.wrappers.RecordVideo`` to see the fetch); blades and stage
+    are exact, pieces are moved rigidly toward where the run left them (``fetch_env.render``).
+
+    ## Version history
+    - v0: first release (one fetch per episode, reset probes, model/oracle/none estimator).
+"""
+
+
+def _obs_table() -> str:
+    return "\n".join(
+        f"    | {i} | {n} | {OBS_TRANSFORM[n]} | {OBS_SCALE[n]:g} | {OBS_UNITS[n]} |"
+        for i, n in enumerate(OBS_NAMES))
+
+
+def _docstring(title: str, description: str, layout: str) -> str:
+    ranges = "\n".join(f"    - {k}: {v}" for k, v in SAMPLING[layout].items())
+    body = _COMMON_DOC.format(
+        **ACTION_RANGES, bound=OBS_BOUND, n_obs=len(OBS_NAMES), obs_table=_obs_table(),
+        presets=", ".join(SCENE_PRESETS), layout=layout, layouts=", ".join(LAYOUTS))
+    return (f"{title}\n\n    ## Description\n    {description}\n\n"
+            f"    Scene sampled at reset (``fetch_env.env_scenes``):\n{ranges}\n{body}")
+
+
+class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
+    __doc__ = _docstring(
+        "Fetch soft food with a two-half-spoon end-effector (any layout).",
+        "A contextual bandit: the robot sees probe-estimated food properties and the layout, "
+        "picks a clamp angle, clamping speed and lift speed, and is rewarded for the pieces it "
+        "lifts minus a penalty for squashing them. Reproduces the fetch of the study in "
+        "PAPER.md on MuJoCo (fetch_env.controller).", "block")
+
+    metadata: ClassVar[dict[str, Any]] = {
+        "render_modes": ["human", "rgb_array", "rgb_array_list"], "render_fps": 25}
+
+    def __init__(
+        self,
+        layout: str = "block",
+        estimator: str = "model",
+        fetch_weight: float = 1.0,
+        deformation_weight: float = 5.0,
+        safe_log_strain: float = 0.34,
+        time_weight: float = 0.0,
+        fetch_by_mass: bool = False,
+        hold: float = 0.5,
+        lift_at_settling: bool = False,
+        settling_tolerance: float = 0.1,
+        max_hold: float = 5.0,
+        lift_height: float = 0.005,
+        air_hold: float = 0.5,
+        settle: float = 0.2,
+        probe_hold: float = 1.0,
+        probe_omega: float = 0.1,
+        probe_strain: float = 0.03,
+        render_mode: str | None = None,
+        width: int = 480,
+        height: int = 360,
+        camera: str = "side",
+    ) -> None:
+        require(layout in LAYOUTS, "layout", layout, f"one of {LAYOUTS}")
+        require(estimator in ESTIMATORS, "estimator", estimator, f"one of {ESTIMATORS}")
+        for name, value in (("fetch_weight", fetch_weight),
+                            ("deformation_weight", deformation_weight),
+                            ("time_weight", time_weight)):
+            require(math.isfinite(value) and value >= 0, name, value, "finite and >= 0")
+        require(math.isfinite(safe_log_strain) and 0 <= safe_log_strain <= 2,
+                "safe_log_strain", safe_log_strain, "in [0, 2]")
+        require(0 < settling_tolerance < 1, "settling_tolerance", settling_tolerance,
+                "in (0, 1)")
+        require(0 <= max_hold <= 60, "max_hold", max_hold, "in [0, 60] s")
+        require(render_mode is None or render_mode in self.metadata["render_modes"],
+                "render_mode", render_mode, f"None or one of {self.metadata['render_modes']}")
+        require(isinstance(width, int) and 16 <= width <= 4096, "width", width,
+                "an int in [16, 4096]")
+        require(isinstance(height, int) and 16 <= height <= 4096, "height", height,
+                "an int in [16, 4096]")
+        require(camera in ("side", "front"), "camera", camera, "'side' or 'front'")
+        # FetchAction and ProbeConfig validate the times and distances before any physics.
+        FetchAction(hold=hold, lift_height=lift_height, air_hold=air_hold, settle=settle)
+        require(0.05 <= probe_hold <= 60, "probe_hold", probe_hold, "in [0.05, 60] s")
+        require(0.01 <= probe_omega <= 2, "probe_omega", probe_omega, "in [0.01, 2] rad/s")
+        require(0 < probe_strain <= 0.3, "probe_strain", probe_strain, "in (0, 0.3]")
+
+        self.layout = layout
+        self.estimator = estimator
+        self.fetch_weight = float(fetch_weight)
+        self.deformation_weight = float(deformation_weight)
+        self.safe_log_strain = float(safe_log_strain)
+        self.time_weight = float(time_weight)
+        self.fetch_by_mass = bool(fetch_by_mass)
+        self.hold = float(hold)
+        self.lift_at_settling = bool(lift_at_settling)
+        self.settling_tolerance = float(settling_tolerance)
+        self.max_hold = float(max_hold)
+        self.lift_height = float(lift_height)
+        self.air_hold = float(air_hold)
+        self.settle = float(settle)
+        self.probe_config = ProbeConfig(strain=probe_strain, omega=probe_omega, hold=probe_hold,
+                                        slip_strain=probe_strain * 5 / 3)
+        self.render_mode = render_mode
+        self.width, self.height, self.camera = width, height, camera
+
+        self.action_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
+        self.observation_space = spaces.Box(-OBS_BOUND, OBS_BOUND, (len(OBS_NAMES),), np.float32)
+        self._init_runtime()
+        self.pieces: tuple[Piece, ...] = ()
+        self._done = True
+        self._episode_hold = self.hold
+        self._last_obs: tuple[np.ndarray, dict[str, Any]] = (
+            np.zeros(len(OBS_NAMES), np.float32), {})
+        self.last_probe_wall_time = 0.0  # [s] probes of the latest reset (not in info: timing
+        self.last_step_wall_time = 0.0  # would break same-seed determinism of infos)
+
+    # ---------------------------------------------------------------- state not pickled
+    def _init_runtime(self) -> None:
+        self._sims: _LRU = _LRU()
+        self._probes: _LRU = _LRU()
+        self._renderer: EpisodeRenderer | None = None
+        self._frames: list[np.ndarray] = []
+        self._last_result: SimResult | None = None
+        self._viewer: Any = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        for key in ("_sims", "_probes", "_renderer", "_frames", "_last_result", "_viewer"):
+            state.pop(key, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._init_runtime()
+
+    # ---------------------------------------------------------------- gymnasium API
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = sorted(set(options) - set(RESET_OPTIONS))
+        if unknown:
+            raise InvalidParameterError(
+                f"unknown reset option(s) {unknown}; valid options: {RESET_OPTIONS}")
+        if "preset" in options and "pieces" in options:
+            raise InvalidParameterError("reset options 'preset' and 'pieces' exclude each other")
+        if "pieces" in options:
+            pieces = tuple(options["pieces"])
+            require(len(pieces) >= 1, "options['pieces']", options["pieces"], "non-empty")
+            for i, p in enumerate(pieces):
+                require(isinstance(p, Piece), f"options['pieces'][{i}]", p, "a Piece")
+        elif "preset" in options:
+            pieces = preset_scene(options["preset"])
+        else:
+            pieces = sample_scene(self.layout, self.np_random)
+        self._sim_for(pieces).scene_for("fetch")  # compile now: bad pieces fail at reset
+        self.pieces = pieces
+        obs, info = self._observe(pieces)
+        self._done = False
+        self._last_result = None
+        if self.render_mode is not None:
+            self._frames = [self._get_renderer().rest_frame(self._sim_for(pieces)
+                                                            .scene_for("fetch"))]
+            if self.render_mode == "human":
+                self.render()
+        return obs, info
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        if self._done:
+            raise RuntimeError("the episode has ended (one fetch per episode): call reset()")
+        wall = time.perf_counter()
+        reward, info, result = self._simulate(action)
+        self.last_step_wall_time = time.perf_counter() - wall
+        self._done = True
+        self._last_result = result
+        if self.render_mode is not None and result is not None:
+            scene = self._sim_for(self.pieces).scene_for("fetch")
+            self._frames = self._get_renderer().replay(
+                scene, result.traces, result.pieces, self.metadata["render_fps"])
+            if self.render_mode == "human":
+                self.render()
+        obs, _ = self._last_obs
+        return obs.copy(), reward, True, False, info
+
+    def render(self) -> np.ndarray | list[np.ndarray] | None:
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode=...")
+            return None
+        if not self._frames:
+            if not self.pieces:
+                raise RuntimeError("call reset() before render()")
+            self._frames = [self._get_renderer().rest_frame(
+                self._sim_for(self.pieces).scene_for("fetch"))]
+        if self.render_mode == "rgb_array":
+            return self._frames[-1]
+        if self.render_mode == "rgb_array_list":
+            frames, self._frames = self._frames, self._frames[-1:]
+            return frames
+        self._show_human()
+        return None
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+        self._sims.clear()
+        self._probes.clear()
+
+    # ---------------------------------------------------------------- for search agents
+    def simulate_action(self, action: np.ndarray) -> tuple[float, dict[str, Any]]:
+        """Run a fetch with ``action`` on the current scene; the env's state is unchanged.
+
+        Returns ``(reward, info)`` exactly as :meth:`step` would (the physics is
+        deterministic), so a per-scene search can evaluate many actions on one scene.
+        """
+        if not self.pieces:
+            raise RuntimeError("call reset() before simulate_action()")
+        reward, info, _ = self._simulate(action)
+        return reward, info
+
+    # ---------------------------------------------------------------- internals
+    def _sim_for(self, pieces: tuple[Piece, ...]) -> FetchSimulator:
+        return self._sims.get_or(pieces, lambda: FetchSimulator(pieces))
+
+    def _get_renderer(self) -> EpisodeRenderer:
+        if self._renderer is None:
+            self._renderer = EpisodeRenderer(self.width, self.height, self.camera)
+        return self._renderer
+
+    def _observe(self, pieces: tuple[Piece, ...]) -> tuple[np.ndarray, dict[str, Any]]:
+        k = probe_piece_index(pieces)
+        true = true_parameters(pieces[k])
+        warnings: list[str] = []
+        wall = time.perf_counter()
+        if self.estimator == "model":
+            # Probes depend only on the probed piece (simulated alone) and the config.
+            outcome: ProbeOutcome = self._probes.get_or(
+                (pieces[k], self.probe_config), lambda: run_probes(pieces, self.probe_config))
+            est = dict(outcome.estimates)
+            flags = {"visco_valid": float(outcome.visco_valid),
+                     "friction_valid": float(outcome.friction_valid)}
+            warnings = list(outcome.warnings)
+        elif self.estimator == "oracle":
+            est = dict(true)
+            flags = {"visco_valid": 1.0, "friction_valid": 1.0}
+        else:
+            est = dict.fromkeys(PARAM_NAMES, math.nan)
+            flags = {"visco_valid": 0.0, "friction_valid": 0.0}
+        self.last_probe_wall_time = time.perf_counter() - wall
+        obs = encode_observation({**est, **flags, **layout_features(pieces)})
+        # What the policy actually sees: a parameter dropped by the encoder is NaN here too.
+        seen = decode_observation(obs)
+        estimated = {n: (float(est[n]) if math.isfinite(seen[n]) else math.nan)
+                     for n in PARAM_NAMES}
+        self._episode_hold = self._hold_from(estimated)
+        info = {"true_params": {n: float(v) for n, v in true.items()},
+                "estimated_params": estimated, "probe_piece": k,
+                "probe_warnings": warnings, "pieces": [p.to_dict() for p in pieces],
+                "hold": self._episode_hold}
+        self._last_obs = (obs, info)
+        return obs.copy(), dict(info)
+
+    def _hold_from(self, est: dict[str, float]) -> float:
+        """The hold before lifting: fixed, or the settling time t_s from the estimates.
+
+        After the clamp the moment relaxes as M_inf + A exp(-t / tau1) (eq. 6); for a fast
+        clamp A / M_inf is about g1 / (1 - g1), so the relaxing part is within
+        ``settling_tolerance`` of M_inf after tau1 * ln(g1 / ((1 - g1) tol)).
+        """
+        if not self.lift_at_settling:
+            return self.hold
+        g1, tau1 = est.get("g1", math.nan), est.get("tau1", math.nan)
+        if not (math.isfinite(g1) and math.isfinite(tau1) and 0 < g1 < 1 and tau1 > 0):
+            return self.hold
+        ratio = g1 / ((1 - g1) * self.settling_tolerance)
+        return float(min(max(tau1 * math.log(max(ratio, 1.0)), 0.0), self.max_hold))
+
+    def _simulate(self, action: Any) -> tuple[float, dict[str, Any], SimResult | None]:
+        phys = action_to_physical(check_action(action))
+        sim = self._sim_for(self.pieces)
+        closed = getattr(sim.scene_for("fetch").pose, "theta_closed", math.inf)
+        theta_d = min(phys["theta_d"], 0.98 * closed)
+        fa = FetchAction(theta_d=theta_d, omega=phys["omega"], lift_speed=phys["lift_speed"],
+                         hold=self._episode_hold, lift_height=self.lift_height,
+                         air_hold=self.air_hold, settle=self.settle)
+        duration = fa.theta_d / fa.omega + fa.hold + fa.lift_height / fa.lift_speed
+        reward_time = -self.time_weight * duration
+        info: dict[str, Any] = dict(self._reset_info_copy())
+        info["action_applied"] = {"theta_d": fa.theta_d, "omega": fa.omega,
+                                  "lift_speed": fa.lift_speed, "hold": fa.hold}
+        info["episode_time"] = duration
+        try:
+            result: SimResult | None = sim.run("fetch", fa)
+        except SimulationDivergedError as exc:
+            result = None
+            info.update(reward_fetch=0.0, reward_deformation=0.0, reward_time=reward_time,
+                        fetch_rate=0.0, fetch_rate_mass=0.0, max_log_strain=math.nan,
+                        is_success=False, pieces=[], traces=Traces({}), error=exc.one_line())
+            return float(reward_time), info, None
+        assert result is not None
+        le = max(max(p["max_log_strain_clamp"], p["max_log_strain_lift"])
+                 for p in result.pieces)
+        share = result.fetch_rate_mass if self.fetch_by_mass else result.fetch_rate
+        reward_fetch = self.fetch_weight * float(share)
+        # Capped at 1 unit of LE: beyond that the piece is crushed (or the contact failed) and
+        # a larger number would only add variance to the return.
+        reward_def = -self.deformation_weight * min(max(0.0, le - self.safe_log_strain), 1.0)
+        info.update(reward_fetch=reward_fetch, reward_deformation=reward_def,
+                    reward_time=reward_time, fetch_rate=float(result.fetch_rate),
+                    fetch_rate_mass=float(result.fetch_rate_mass), max_log_strain=float(le),
+                    is_success=bool(result.fetch_rate >= 1.0 and le <= self.safe_log_strain),
+                    pieces=result.pieces, traces=Traces(result.traces))
+        return float(reward_fetch + reward_def + reward_time), info, result
+
+    def _reset_info_copy(self) -> dict[str, Any]:
+        _, info = self._last_obs
+        return {k: (dict(v) if isinstance(v, dict) else v) for k, v in info.items()}
+
+    def _show_human(self) -> None:
+        import mujoco.viewer  # needs a display; imported only here
+
+        scene = self._sim_for(self.pieces).scene_for("fetch")
+        frames = self._frames
+        self._frames = frames[-1:]
+        if self._viewer is None:
+            from fetch_env.scene import initial_state
+
+            self._viewer_data = initial_state(scene)
+            self._viewer = mujoco.viewer.launch_passive(scene.model, self._viewer_data)
+        # The viewer shows the live model; replay timing only (frames are for rgb modes).
+        for _ in frames:
+            self._viewer.sync()
+            time.sleep(1.0 / self.metadata["render_fps"])
+
+
+class FoodFetchBlockEnv(FoodFetchEnv):
+    __doc__ = _docstring(
+        "FoodFetch-Block-v0: fetch one soft block.",
+        "One piece (cube, ellipsoid or sphere) of a sampled viscoelastic material, the "
+        "study's block experiments; the fastest id (about one episode a second).", "block")
+
+    def __init__(self, layout: str = "block", **kwargs: Any) -> None:
+        super().__init__(layout=layout, **kwargs)
+
+
+class FoodFetchRowEnv(FoodFetchEnv):
+    __doc__ = _docstring(
+        "FoodFetch-Row-v0: fetch a single row of cubes.",
+        "Two or three cubes side by side across the clamp direction, at one of the study's "
+        "spacings (1, 0.5, 0.3, 0.1 mm); the study found tighter rows fetched better.", "row")
+
+    def __init__(self, layout: str = "row", **kwargs: Any) -> None:
+        super().__init__(layout=layout, **kwargs)
+
+
+class FoodFetchTwoRowsEnv(FoodFetchEnv):
+    __doc__ = _docstring(
+        "FoodFetch-TwoRows-v0: fetch two rows of hard or soft cubes.",
+        "Two rows of cubes, 1 mm apart along the clamp and 0.01 mm across, all 200 MPa "
+        "(hard) or all 0.2 MPa (soft): the study's soft-against-hard comparison.", "two_rows")
+
+    def __init__(self, layout: str = "two_rows", **kwargs: Any) -> None:
+        super().__init__(layout=layout, **kwargs)
+
+
+class FoodFetchDicedEnv(FoodFetchEnv):
+    __doc__ = _docstring(
+        "FoodFetch-Diced-v0: fetch a diced mix of shapes and stiffnesses.",
+        "Four to eight small pieces (cube, ellipsoid, sphere) of the study's five stiffness "
+        "levels (200, 40, 5, 0.15, 0.0123 MPa) packed on a jittered grid; hard pieces tend to "
+        "escape the clamp.", "diced")
+
+    def __init__(self, layout: str = "diced", **kwargs: Any) -> None:
+        super().__init__(layout=layout, **kwargs)
+
+
