@@ -144,7 +144,7 @@ _COMMON_DOC = """
     no fetch reward; the next ``reset()`` works. Stepping a finished episode raises.
 
     ## Info
-    reset: ``true_params``, ``estimated_params`` (SI, NaN if not identified), ``probe_piece``,
+    reset: ``true_params``, ``estimated_params`` (SI, None if not identified), ``probe_piece``,
     ``probe_warnings``, ``pieces`` (scene description), ``hold``.
     step: also ``reward_fetch``, ``reward_deformation``, ``reward_time``, ``fetch_rate``,
     ``fetch_rate_mass``, ``max_log_strain``, ``is_success`` (every piece fetched and
@@ -435,7 +435,9 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         obs = encode_observation({**est, **flags, **layout_features(pieces)})
         # What the policy actually sees: a parameter dropped by the encoder is NaN here too.
         seen = decode_observation(obs)
-        estimated = {n: (float(est[n]) if math.isfinite(seen[n]) else math.nan)
+        # None, not NaN, where not identified: NaN != NaN would make equal infos compare
+        # unequal (gymnasium's determinism checks use ==).
+        estimated = {n: (float(est[n]) if math.isfinite(seen[n]) else None)
                      for n in PARAM_NAMES}
         self._episode_hold = self._hold_from(estimated)
         info = {"true_params": {n: float(v) for n, v in true.items()},
@@ -445,7 +447,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         self._last_obs = (obs, info)
         return obs.copy(), dict(info)
 
-    def _hold_from(self, est: dict[str, float]) -> float:
+    def _hold_from(self, est: dict[str, float | None]) -> float:
         """The hold before lifting: fixed, or the settling time t_s from the estimates.
 
         After the clamp the moment relaxes as M_inf + A exp(-t / tau1) (eq. 6); for a fast
@@ -454,8 +456,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         """
         if not self.lift_at_settling:
             return self.hold
-        g1, tau1 = est.get("g1", math.nan), est.get("tau1", math.nan)
-        if not (math.isfinite(g1) and math.isfinite(tau1) and 0 < g1 < 1 and tau1 > 0):
+        g1, tau1 = est.get("g1"), est.get("tau1")
+        if g1 is None or tau1 is None or not (0 < g1 < 1 and tau1 > 0):
             return self.hold
         ratio = g1 / ((1 - g1) * self.settling_tolerance)
         return float(min(max(tau1 * math.log(max(ratio, 1.0)), 0.0), self.max_hold))
@@ -479,7 +481,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         except SimulationDivergedError as exc:
             result = None
             info.update(reward_fetch=0.0, reward_deformation=0.0, reward_time=reward_time,
-                        fetch_rate=0.0, fetch_rate_mass=0.0, max_log_strain=math.nan,
+                        fetch_rate=0.0, fetch_rate_mass=0.0, max_log_strain=None,
                         is_success=False, pieces=[], traces=Traces({}), error=exc.one_line())
             return float(reward_time), info, None
         assert result is not None
