@@ -24,7 +24,12 @@ import numpy as np
 
 from fetch_env.errors import InvalidParameterError, SimulationDivergedError, require, require_finite
 from fetch_env.layouts import Piece
-from fetch_env.metrics import StrainMeter, piece_positions, residual_plastic_strain
+from fetch_env.metrics import (
+    StrainMeter,
+    blade_overlap,
+    piece_positions,
+    residual_plastic_strain,
+)
 from fetch_env.scene import Geometry, Scene, build_scene, initial_state
 from fetch_env.sensors import ContactSensors
 from fetch_env.viscoelastic import PronyForces
@@ -37,6 +42,7 @@ SERVO_TIME_CONSTANT = 0.005  # [s] kv / kp of the hinge and lift servos (fetch_b
 THETA_D_RANGE = (0.0, 0.3)  # [rad]
 OMEGA_RANGE = (1e-3, 2.0)  # [rad/s]
 LIFT_SPEED_RANGE = (1e-4, 0.1)  # [m/s]
+RELAXATION_GAP = 1e-4  # [m] blade-food clearance at the start of the relaxation probe
 
 
 @dataclass(frozen=True)
@@ -118,7 +124,7 @@ def make_profile(experiment: str, action: FetchAction, dt: float) -> Profile:
     else:
         raise InvalidParameterError(f"experiment must be one of {EXPERIMENTS}, got {experiment!r}")
     ends = np.cumsum([s[1] for s in segments])
-    n = int(math.ceil(ends[-1] / dt - 1e-9))
+    n = math.ceil(ends[-1] / dt - 1e-9)
     t = np.arange(n) * dt  # time at the start of each step
     theta = np.zeros(n)
     theta_dot = np.zeros(n)
@@ -209,8 +215,16 @@ class FetchSimulator:
         self._scenes: dict[Geometry, Scene] = {}
 
     def scene_for(self, experiment: str) -> Scene:
-        """The compiled scene; the slip probe raises the blade tips so they can slide down."""
+        """The compiled scene.
+
+        The relaxation probe starts the blades ``RELAXATION_GAP`` from the food (the robot
+        closes in until just before contact, as in the study), so that its small theta_d
+        (0.0244 rad) is a real squeeze; the slip probe raises the blade tips so they can
+        slide down.
+        """
         geometry = self.geometry
+        if experiment == "relaxation":
+            geometry = dataclasses.replace(geometry, gap=min(geometry.gap, RELAXATION_GAP))
         if experiment == "slip":
             geometry = dataclasses.replace(geometry, tip_clearance=max(
                 geometry.tip_clearance, 0.006))
@@ -224,10 +238,10 @@ class FetchSimulator:
         action = action or FetchAction()
         require(isinstance(action, FetchAction), "action", action, "a FetchAction")
         scene = self.scene_for(experiment)
-        if action.theta_d > scene.pose.theta_0 + 0.05:
+        if action.theta_d >= scene.pose.theta_closed:
             raise InvalidParameterError(
-                f"theta_d must be <= theta_0 + 0.05 = {scene.pose.theta_0 + 0.05:.4f} rad for "
-                f"this scene (blades would cross), got {action.theta_d!r}")
+                f"theta_d must be < theta_closed = {scene.pose.theta_closed:.4f} rad for this "
+                f"scene (the half-spoons' tips would cross), got {action.theta_d!r}")
         return _run(scene, experiment, action, self.record_hz)
 
 
@@ -238,12 +252,12 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float) -
     dt = m.opt.timestep
     profile = make_profile(experiment, action, dt)
     n = len(profile.theta)
-    every = max(1, int(round(1.0 / (record_hz * dt))))
+    every = max(1, round(1.0 / (record_hz * dt)))
     prony = PronyForces(scene)
     prony.reset(d)
     strain = StrainMeter(scene, d)
 
-    q_open = -scene.pose.theta_open
+    q_open = scene.pose.theta_open
     servos = [ids["servo_left"], ids["servo_right"]]
     lift_act = ids["servo_lift"]
     hinge_q = [m.jnt_qposadr[ids["hinge_left"]], m.jnt_qposadr[ids["hinge_right"]]]
@@ -259,10 +273,12 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float) -
     n_rec = (n + every - 1) // every
     rec = {k: np.zeros(n_rec) for k in ("t", "theta", "theta_cmd", "moment_left",
                                          "moment_right", "normal_left", "tangential_left",
-                                         "normal_right", "tangential_right", "lift")}
+                                         "normal_right", "tangential_right", "lift",
+                                         "blade_overlap")}
     rec["force"] = np.zeros((n_rec, 3))
     rec["phase"] = np.zeros(n_rec, dtype=np.int8)
     le_trace = np.zeros((n_rec, len(scene.pieces)))
+    lowest_z = np.full(len(scene.pieces), np.inf)  # lowest vertex over the run: plate pass-through
     bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
 
     def fail(why: str) -> SimulationDivergedError:
@@ -291,11 +307,16 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float) -
                 rec[f"normal_{side}"][r] = reading["normal"][k]
                 rec[f"tangential_{side}"][r] = reading["tangential"][k]
             rec["force"][r] = reading["force"]
+            rec["blade_overlap"][r] = blade_overlap(scene, d)
+            low_now, _ = piece_positions(scene, d)
+            lowest_z = np.minimum(lowest_z, low_now)
             le_trace[r] = strain.piece_strain(d)
             r += 1
     wall = time.perf_counter() - wall
     if not np.isfinite(d.qpos).all():
         raise fail("non-finite state")
+    warned = {mujoco.mjtWarning(k).name: int(w.number) for k, w in enumerate(d.warning)
+              if w.number}
 
     low, centre = piece_positions(scene, d)
     masses = np.array([p.mass for p in scene.pieces])
@@ -319,10 +340,10 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float) -
             "residual_plastic_strain": plastic[k],
             "final_centre": centre[k].tolist(),
             "final_lowest_z": float(low[k]),
+            "lowest_z_ever": float(lowest_z[k]),
         })
     rec["max_log_strain"] = le_trace.max(axis=1)
-    geometry = {"L": scene.pose.L, "theta_0": scene.pose.theta_0,
-                "theta_open": scene.pose.theta_open, "hinge_height": scene.pose.hinge_height,
+    geometry = {**scene.pose.to_dict(),
                 "blade_length": scene.geometry.blade_length,
                 "blade_width": scene.geometry.blade_width,
                 "tip_clearance": scene.geometry.tip_clearance, "gap": scene.geometry.gap}
@@ -331,10 +352,11 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float) -
         pieces=pieces_out, fetch_rate=float(fetched.mean()),
         fetch_rate_mass=float(masses[fetched].sum() / masses.sum()), geometry=geometry,
         material=material_summary(scene.pieces), wall_time=wall, n_steps=n, timestep=dt,
-        extra={"t_clamp_start": profile.t_clamp_start})
+        extra={"t_clamp_start": profile.t_clamp_start, "mujoco_warnings": warned,
+               "max_blade_overlap": float(rec["blade_overlap"].max())})
 
 
 def _blade_half_gap(scene: Scene, d: mujoco.MjData) -> float:
     """Half the distance between the blades' inner faces at the food's centroid height."""
     q = d.qpos[scene.model.jnt_qposadr[scene.ids["hinge_left"]]]
-    return abs(scene.pose.L * math.tan(-q)) + 1e-3 if q < 0 else 1e-3
+    return scene.pose.face_y(q, scene.pose.L) + 1e-3

@@ -68,3 +68,24 @@ def residual_plastic_strain(scene: Scene, data: mujoco.MjData) -> list[float | N
         eps = np.asarray(data.plastic[adr:adr + 6])
         out.append(float(np.linalg.norm(eps)))
     return out
+
+
+def blade_overlap(scene: Scene, data: mujoco.MjData) -> float:
+    """Deepest reach of any food vertex into either blade, from its inner face [m].
+
+    0 when nothing touches; a few tenths of a millimetre in a firm clamp (contact
+    compliance); more than the blade's thickness means a piece passed through it.
+    """
+    m = scene.model
+    v = data.flexvert_xpos
+    deepest = 0.0
+    for side, inward in (("left", 1.0), ("right", -1.0)):
+        g = scene.ids[f"blade_{side}"]
+        half = m.geom_size[g]
+        local = (v - data.geom_xpos[g]) @ data.geom_xmat[g].reshape(3, 3)
+        inside = (np.abs(local[:, 0]) <= half[0]) & (np.abs(local[:, 2]) <= half[2])
+        if inside.any():
+            # depth below the inner face (local y = +half for the left blade, -half right)
+            depth = half[1] - inward * local[inside, 1]
+            deepest = max(deepest, float(depth.max()))
+    return deepest

@@ -15,15 +15,18 @@ from typing import Any
 
 import mujoco
 import numpy as np
-from scipy.optimize import brentq
 
 from fetch_env.errors import InvalidParameterError, require, require_finite
 from fetch_env.layouts import Piece, check_no_overlap
 
 BASE_XML = "fetch_base.xml"
 # Vertices per axis of each piece's collision/strain mesh.  All pieces use one trilinear cell
-# (24 dofs); the mesh only shapes the surface, and contacts dominate the cost.
-MESH_COUNT = {"cube": 2, "ellipsoid": 4, "sphere": 4}
+# (24 dofs); the mesh only shapes the surface and spreads the contact.  MuJoCo makes one
+# contact per mesh tetrahedron and geom, so a cube of 2 x 2 x 2 vertices (6 tetrahedra)
+# touches a blade at one or two jumping points and chatters (moment noise ~80 % of the mean
+# in a firm clamp); 3 x 3 x 3 (48 tetrahedra) spreads it over a face (~1.5 %) at ~30 % cost.
+MESH_COUNT = {"cube": 3, "ellipsoid": 4, "sphere": 4}
+BLADE_HALF_THICKNESS = 0.002  # [m] thick enough that no food vertex can reach the far side
 
 
 @dataclass(frozen=True)
@@ -31,14 +34,16 @@ class Geometry:
     """End-effector geometry and the approach pose [m, rad].
 
     Attributes:
-        blade_length: hinge axis to blade tip [m].
+        blade_length: hinge axis to blade tip [m].  45 mm puts the hinge about 38 mm above a
+            15 mm piece's centroid, so the study's angles mean the study's squeeze: with the
+            1 mm gap, LE stays under 0.1 at 0.045 rad and passes 0.38 at 0.09 rad.
         blade_width: blade extent along the hinge axis (x) [m].
         tip_clearance: blade tip above the plate with the blades vertical (closed) [m].
         gap: clearance between each blade's inner face and the food's outer side at the open
-            pose [m]; the open angle is solved from it per scene.
+            pose [m]; the faces' offset from the hinge axis is set from it per scene.
     """
 
-    blade_length: float = 0.06
+    blade_length: float = 0.045
     blade_width: float = 0.048
     tip_clearance: float = 0.001
     gap: float = 0.001
@@ -64,19 +69,37 @@ class Geometry:
 class PoseInfo:
     """Where the clamp starts, in the study's terms.
 
-    ``theta`` is the study's hinge angle: 0 at the open pose, growing as the blades close,
-    ``theta_0`` at the closed pose.  ``L`` is the distance from the hinge axis down to the
-    height of the pieces' centroid (the equivalent contact section).
+    Each half-spoon's inner (contact) face is parallel to the hinge axis and offset from it
+    by ``face_offset``, like the inside of a spoon's bowl, so that at the open pose the faces
+    are vertical, parallel to the food's sides and ``gap`` away from them.  ``theta`` is the
+    study's hinge angle: 0 at the open pose, growing as the blades close (tilting inward).
+
+    Attributes:
+        L: distance from the hinge axis down to the pieces' centroid height (the
+            equivalent contact section) [m].
+        theta_0: the angle the study's equations 2-7 call theta_0, at which the contact face
+            is vertical: 0 here, the open pose, so the face tilts by theta - theta_0 = theta.
+        theta_open: the open pose, 0 by definition of theta.
+        theta_closed: the angle at which the two faces meet at the tips (fully closed).
+        face_offset: distance from the hinge axis to each contact face [m].
+        stage_xy: where the stage (hinge axis) sits over the plate [m].
+        hinge_height: hinge axis above the plate [m].
     """
 
     L: float
     theta_0: float
     theta_open: float
+    theta_closed: float
+    face_offset: float
     stage_xy: tuple[float, float]
     hinge_height: float
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    def face_y(self, theta: float, depth: float) -> float:
+        """Distance from the hinge plane to a contact face at ``depth`` below the axis [m]."""
+        return self.face_offset / math.cos(theta) - depth * math.tan(theta)
 
 
 @dataclass
@@ -96,29 +119,13 @@ class Scene:
                 "geometry": asdict(self.geometry), "pose": self.pose.to_dict()}
 
 
-def _open_angle(pieces: tuple[Piece, ...], geometry: Geometry, stage_y: float) -> float:
-    """Blade angle from vertical at which each blade clears every piece by ``geometry.gap``.
-
-    A blade's inner face is the plane through the hinge axis; with the blade at angle phi
-    from vertical, its outward normal is (0, +-cos phi, sin phi).  The clearance to the food
-    is the plane offset minus the food's support function along that normal (exact for
-    boxes and ellipsoids), and it grows monotonically with phi.
-    """
-    axis = np.array([0.0, stage_y, geometry.hinge_height])
-    phis = []
-    for side in (-1.0, 1.0):
-        def clearance(phi: float, side: float = side) -> float:
-            n = np.array([0.0, side * math.cos(phi), math.sin(phi)])
-            return float(axis @ n - max(p.support(n) for p in pieces)) - geometry.gap
-        if clearance(0.0) >= 0:
-            phis.append(0.0)
-            continue
-        if clearance(1.2) < 0:
-            raise InvalidParameterError(
-                "pieces are too wide or too tall for the end-effector: no open pose clears "
-                f"them by gap={geometry.gap} m (blade_length={geometry.blade_length} m)")
-        phis.append(brentq(clearance, 0.0, 1.2, xtol=1e-12))
-    return max(phis)
+def _face_offset(pieces: tuple[Piece, ...], geometry: Geometry, stage_y: float) -> float:
+    """Offset of the vertical contact faces from the hinge plane: the pieces' widest reach
+    along the clamp direction (their support function, exact for boxes and ellipsoids) on
+    either side of the stage, plus ``geometry.gap``."""
+    reach = max(max(p.support(np.array([0.0, side, 0.0])) - side * stage_y for p in pieces)
+                for side in (-1.0, 1.0))
+    return float(reach + geometry.gap)
 
 
 def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | None = None,
@@ -140,12 +147,17 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         raise InvalidParameterError(
             f"pieces span {max(xs) - min(xs):.4f} m across the blades, wider than "
             f"blade_width={geometry.blade_width} m + 20 mm")
-    phi_open = _open_angle(pieces, geometry, stage_xy[1])
+    tallest = max(p.extents[2] for p in pieces)
+    if tallest > geometry.hinge_height - 0.005:
+        raise InvalidParameterError(
+            f"pieces are {tallest:.4f} m tall, too tall for the end-effector: the hinge is "
+            f"{geometry.hinge_height:.4f} m above the plate (blade_length + tip_clearance)")
+    offset = _face_offset(pieces, geometry, stage_xy[1])
     masses = np.array([p.mass for p in pieces])
     z_centroid = float(masses @ np.array([p.centre[2] for p in pieces]) / masses.sum())
-    pose = PoseInfo(L=geometry.hinge_height - z_centroid, theta_0=phi_open,
-                    theta_open=phi_open, stage_xy=stage_xy,
-                    hinge_height=geometry.hinge_height)
+    pose = PoseInfo(L=geometry.hinge_height - z_centroid, theta_0=0.0, theta_open=0.0,
+                    theta_closed=math.atan2(offset, geometry.blade_length), face_offset=offset,
+                    stage_xy=stage_xy, hinge_height=geometry.hinge_height)
 
     xml = resources.files("fetch_env").joinpath("assets", BASE_XML).read_text()
     spec = mujoco.MjSpec.from_string(xml)
@@ -155,8 +167,8 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
     stage.pos = [stage_xy[0], stage_xy[1], geometry.hinge_height]
     for side, sign in (("left", -1.0), ("right", 1.0)):
         blade = spec.geom(f"blade_{side}")
-        blade.size = [geometry.blade_width / 2, 0.001, geometry.blade_length / 2]
-        blade.pos = [0.0, sign * 0.001, -geometry.blade_length / 2]
+        blade.size = [geometry.blade_width / 2, BLADE_HALF_THICKNESS, geometry.blade_length / 2]
+        blade.pos = [0.0, sign * (offset + BLADE_HALF_THICKNESS), -geometry.blade_length / 2]
     plate = spec.geom("plate")
     plate.friction = [pieces[0].material.plate_mu, 0.005, 0.0001]
 
@@ -208,12 +220,11 @@ def _colour(young: float) -> list[float]:
 
 
 def initial_state(scene: Scene) -> mujoco.MjData:
-    """MjData at the open pose: blades at -theta_open, servos holding them there."""
+    """MjData at the open pose (hinges at 0, faces vertical), servos holding them there."""
     m = scene.model
     d = mujoco.MjData(m)
-    q_open = -scene.pose.theta_open
     for side in ("left", "right"):
-        d.qpos[m.jnt_qposadr[scene.ids[f"hinge_{side}"]]] = q_open
-        d.ctrl[scene.ids[f"servo_{side}"]] = q_open
+        d.qpos[m.jnt_qposadr[scene.ids[f"hinge_{side}"]]] = scene.pose.theta_open
+        d.ctrl[scene.ids[f"servo_{side}"]] = scene.pose.theta_open
     mujoco.mj_forward(m, d)
     return d

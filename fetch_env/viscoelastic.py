@@ -67,10 +67,10 @@ class PronyForces:
             adr, num = m.flex_nodeadr[f], m.flex_nodenum[f]
             if num != 8 or m.flex_interp[f] != 1:
                 raise ValueError(f"flex {f} is not a one-cell trilinear flex")
-            bodies = m.flex_nodebodyid[adr:adr + num]
+            bodies = m.flex_nodebodyid[adr : adr + num]
             node_bodies.append(bodies)
             dofs.append(np.concatenate([m.body_dofadr[b] + np.arange(3) for b in bodies]))
-            k = m.flex_stiffness[m.flex_stiffnessadr[f]:m.flex_stiffnessadr[f] + 576]
+            k = m.flex_stiffness[m.flex_stiffnessadr[f] : m.flex_stiffnessadr[f] + 576]
             stiff.append(np.asarray(k).reshape(24, 24))
             rest.append(m.body_pos[bodies])  # node rest positions in the piece frame
             terms = list(p.material.prony_terms) + [(0.0, 1.0)] * n_terms
@@ -112,7 +112,9 @@ class PronyForces:
         u, R = self._corotated(data)
         # Exact exponential update of du_k/dt = (u - u_k) / tau_k over the step, with u
         # held at its start-of-step value.
-        self.lagged = self.decay[:, :, None] * self.lagged + (1 - self.decay[:, :, None]) * u[:, None, :]
+        self.lagged = (
+            self.decay[:, :, None] * self.lagged + (1 - self.decay[:, :, None]) * u[:, None, :]
+        )
         f_local = np.einsum("ptij,ptj->pi", self.gK, self.lagged).reshape(self.n_pieces, 8, 3)
         f_world = np.einsum("pia,pba->pib", f_local, R)
         data.qfrc_applied[self.dofs] = f_world.reshape(-1)
