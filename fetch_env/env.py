@@ -174,7 +174,7 @@ _COMMON_DOC = """
     | lift_height | 0.005 | lift distance [m] |
     | air_hold | 0.5 | hold in the air before counting fetched pieces [s] |
     | settle | 0.2 | settling on the plate before the clamp [s] |
-    | probe_hold | 1.0 | relaxation probe hold [s] |
+    | probe_hold | 0.5 | relaxation probe hold [s]; longer is more accurate, slower |
     | probe_omega | 0.1 | probes' clamping angular velocity [rad/s] |
     | probe_strain | 0.03 | relaxation probe's target squeeze (share of the width) |
     | render_mode | None | None, "rgb_array", "rgb_array_list" or "human" |
@@ -234,7 +234,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         lift_height: float = 0.005,
         air_hold: float = 0.5,
         settle: float = 0.2,
-        probe_hold: float = 1.0,
+        probe_hold: float = 0.5,
         probe_omega: float = 0.1,
         probe_strain: float = 0.03,
         render_mode: str | None = None,

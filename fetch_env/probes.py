@@ -60,11 +60,11 @@ class ProbeConfig:
 
     strain: float = 0.06
     omega: float = 0.3
-    hold: float = 1.0
-    settle: float = 0.1
+    hold: float = 0.5
+    settle: float = 0.05
     slip_strain: float = 0.08
     slide_distance: float = 0.002
-    slide_time: float = 0.3
+    slide_time: float = 0.2
 
 
 @dataclass
