@@ -30,7 +30,7 @@ from fetch_env.metrics import (
     piece_positions,
     residual_plastic_strain,
 )
-from fetch_env.scene import Geometry, Scene, build_scene, initial_state
+from fetch_env.scene import Geometry, Scene, build_scene, initial_state, simulated_young
 from fetch_env.sensors import ContactSensors
 from fetch_env.viscoelastic import PronyForces
 
@@ -42,6 +42,7 @@ SERVO_TIME_CONSTANT = 0.005  # [s] kv / kp of the hinge and lift servos (fetch_b
 THETA_D_RANGE = (0.0, 0.3)  # [rad]
 OMEGA_RANGE = (1e-3, 2.0)  # [rad/s]
 LIFT_SPEED_RANGE = (1e-4, 0.1)  # [m/s]
+STALL_MOMENT = 2.0  # [N m] the clamping motor stalls above this load (~50 N at L = 38 mm)
 RELAXATION_GAP = 1e-4  # [m] blade-food clearance at the start of the relaxation probe
 
 
@@ -238,11 +239,22 @@ class FetchSimulator:
         action = action or FetchAction()
         require(isinstance(action, FetchAction), "action", action, "a FetchAction")
         scene = self.scene_for(experiment)
-        if action.theta_d >= scene.pose.theta_closed:
-            raise InvalidParameterError(
-                f"theta_d must be < theta_closed = {scene.pose.theta_closed:.4f} rad for this "
-                f"scene (the half-spoons' tips would cross), got {action.theta_d!r}")
         return _run(scene, experiment, action, self.record_hz)
+
+
+def servo_commands(scene: Scene, profile: Profile) -> tuple[np.ndarray, np.ndarray]:
+    """Hinge and lift servo targets for every physics step of ``profile``.
+
+    Velocity feed-forward: the servos are kp (q* - q) - kv qdot, so commanding
+    q* = q_ref + (kv / kp) qdot_ref makes them track a ramp with no lag.  The target of
+    step i is the reference at its end, t_{i+1}.
+    """
+    n = len(profile.theta)
+    ahead = np.minimum(np.arange(n) + 1, n - 1)
+    hinge = (scene.pose.theta_open + profile.theta[ahead]
+             + SERVO_TIME_CONSTANT * profile.theta_dot[ahead])
+    lift = profile.lift[ahead] + SERVO_TIME_CONSTANT * profile.lift_dot[ahead]
+    return hinge, lift
 
 
 def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float) -> SimResult:
@@ -261,14 +273,10 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float) -
     servos = [ids["servo_left"], ids["servo_right"]]
     lift_act = ids["servo_lift"]
     hinge_q = [m.jnt_qposadr[ids["hinge_left"]], m.jnt_qposadr[ids["hinge_right"]]]
+    hinge_v = [m.jnt_dofadr[ids["hinge_left"]], m.jnt_dofadr[ids["hinge_right"]]]
     sensors = ContactSensors(scene)
     lift_q = m.jnt_qposadr[ids["lift"]]
-    # Velocity feed-forward: the servos are kp (q* - q) - kv qdot, so commanding
-    # q* = q_ref + (kv / kp) qdot_ref makes them track a ramp with no lag.
-    # The target of step i is the reference at its end, t_{i+1}.
-    ahead = np.minimum(np.arange(n) + 1, n - 1)
-    ctrl_hinge = q_open + profile.theta[ahead] + SERVO_TIME_CONSTANT * profile.theta_dot[ahead]
-    ctrl_lift = profile.lift[ahead] + SERVO_TIME_CONSTANT * profile.lift_dot[ahead]
+    ctrl_hinge, ctrl_lift = servo_commands(scene, profile)
 
     n_rec = (n + every - 1) // every
     rec = {k: np.zeros(n_rec) for k in ("t", "theta", "theta_cmd", "moment_left",
@@ -287,15 +295,20 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float) -
 
     wall = time.perf_counter()
     r = 0
+    stall_cap = np.inf  # the angle the motor stalled at: the command never goes past it
     for i in range(n):
-        d.ctrl[servos[0]] = ctrl_hinge[i]
-        d.ctrl[servos[1]] = ctrl_hinge[i]
+        if stall_cap == np.inf and max(abs(d.qfrc_constraint[hinge_v[0]]),
+                                      abs(d.qfrc_constraint[hinge_v[1]])) > STALL_MOMENT:
+            # A real clamping motor cannot push harder than its stall moment: the blades
+            # stop where they are (stiff pieces are held, not crushed).
+            stall_cap = 0.5 * (d.qpos[hinge_q[0]] + d.qpos[hinge_q[1]])
+        d.ctrl[servos[0]] = d.ctrl[servos[1]] = min(ctrl_hinge[i], stall_cap)
         d.ctrl[lift_act] = ctrl_lift[i]
         prony.apply(d)
         mujoco.mj_step(m, d)
+        if d.warning[bad_qacc].number:  # autoreset is off: the state is still the bad one
+            raise fail("bad or non-finite acceleration")
         if i % every == 0:
-            if d.warning[bad_qacc].number or not np.isfinite(d.qacc).all():
-                raise fail("bad or non-finite acceleration")
             rec["t"][r] = d.time
             rec["phase"][r] = profile.phase[i]
             rec["theta"][r] = 0.5 * (d.qpos[hinge_q[0]] + d.qpos[hinge_q[1]]) - q_open
@@ -334,6 +347,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float) -
     for k, p in enumerate(scene.pieces):
         pieces_out.append({
             "shape": p.shape, "size": p.size, "mass": p.mass, "young": p.material.young,
+            "young_simulated": simulated_young(p, dt),
             "fetched": bool(fetched[k]),
             "max_log_strain_clamp": float(le_trace[in_clamp, k].max()) if in_clamp.any() else 0.0,
             "max_log_strain_lift": float(le_trace[in_lift, k].max()) if in_lift.any() else 0.0,
@@ -353,6 +367,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float) -
         fetch_rate_mass=float(masses[fetched].sum() / masses.sum()), geometry=geometry,
         material=material_summary(scene.pieces), wall_time=wall, n_steps=n, timestep=dt,
         extra={"t_clamp_start": profile.t_clamp_start, "mujoco_warnings": warned,
+               "stalled_at": None if stall_cap == np.inf else float(stall_cap - q_open),
                "max_blade_overlap": float(rec["blade_overlap"].max())})
 
 

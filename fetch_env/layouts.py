@@ -165,16 +165,28 @@ def diced_mix(rng: np.random.Generator, n_pieces: int | None = None,
             "within [0.006, 0.025] m with low <= high")
     n_along = 2 if n <= 8 else 3
     n_across = int(np.ceil(n / n_along))
-    pitch = hi + spacing
-    pieces: list[Piece] = []
     cells = [(r, c) for r in range(n_along) for c in range(n_across)][:n]
-    for r, c in cells:
-        shape = str(rng.choice(SHAPES))
-        size = float(rng.uniform(lo, hi))
-        mat = PRESETS[str(rng.choice(names))]
-        slack = (pitch - size) / 2 - spacing / 2
-        x = (c - (n_across - 1) / 2) * pitch + rng.uniform(-slack, slack)
-        y = (r - (n_along - 1) / 2) * pitch + rng.uniform(-slack, slack)
-        pieces.append(Piece(shape, size, mat, float(x), float(y)))
+    drawn = [(str(rng.choice(SHAPES)), float(rng.uniform(lo, hi)), PRESETS[str(rng.choice(names))])
+             for _ in cells]
+    extents = [Piece(shape, size, mat).extents for shape, size, mat in drawn]
+    # Packed like diced food on a plate: each row along the clamp direction (y) is as deep as
+    # its deepest piece, each piece as wide as it is (x), neighbours `spacing` apart, plus a
+    # small jitter (a quarter of the spacing) that can never close a gap.
+    row_depth = [max(extents[k][1] for k, (r, _) in enumerate(cells) if r == row)
+                 for row in range(n_along)]
+    row_y = np.cumsum([0.0] + [row_depth[i] / 2 + row_depth[i + 1] / 2 + spacing
+                               for i in range(n_along - 1)])
+    row_y -= row_y.mean()
+    pieces: list[Piece] = []
+    for row in range(n_along):
+        members = [k for k, (r, _) in enumerate(cells) if r == row]
+        widths = [extents[k][0] for k in members]
+        x = np.cumsum([0.0] + [widths[i] / 2 + widths[i + 1] / 2 + spacing
+                               for i in range(len(members) - 1)])
+        x -= x.mean()
+        for k, xk in zip(members, x, strict=True):
+            shape, size, mat = drawn[k]
+            jx, jy = rng.uniform(-spacing / 4, spacing / 4, size=2)
+            pieces.append(Piece(shape, size, mat, float(xk + jx), float(row_y[row] + jy)))
     check_no_overlap(pieces)
     return tuple(pieces)

@@ -26,6 +26,12 @@ BASE_XML = "fetch_base.xml"
 # touches a blade at one or two jumping points and chatters (moment noise ~80 % of the mean
 # in a firm clamp); 3 x 3 x 3 (48 tetrahedra) spreads it over a face (~1.5 %) at ~30 % cost.
 MESH_COUNT = {"cube": 3, "ellipsoid": 4, "sphere": 4}
+# Largest E dt^2 / (rho s^2) (s: the piece's thinnest extent; the flex's stiffness-to-mass
+# ratio per step) simulated as is.  Above ~2e4 MuJoCo's effective-metric (M + dt^2 K) solve
+# warns of ill-conditioned flex stiffness or diverges (a 7 mm, 200 MPa dice is 1e5), so such
+# pieces get the capped modulus (reported as ``young_simulated``): still > 40x stiffer than the
+# soft foods, and held by a motor that stalls at 2 N m, they deform < 1 % in any clamp.
+CONDITIONING_LIMIT = 1e4
 BLADE_HALF_THICKNESS = 0.002  # [m] thick enough that no food vertex can reach the far side
 
 
@@ -169,6 +175,12 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         blade = spec.geom(f"blade_{side}")
         blade.size = [geometry.blade_width / 2, BLADE_HALF_THICKNESS, geometry.blade_length / 2]
         blade.pos = [0.0, sign * (offset + BLADE_HALF_THICKNESS), -geometry.blade_length / 2]
+    for side in ("left", "right"):
+        # The mechanical stop: the half-spoons cannot close past the angle at which their
+        # faces meet at the tips (a larger commanded theta_d just presses them together).
+        hinge = spec.joint(f"hinge_{side}")
+        hinge.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+        hinge.range = [-0.2, pose.theta_closed]
     plate = spec.geom("plate")
     plate.friction = [pieces[0].material.plate_mu, 0.005, 0.0001]
 
@@ -181,7 +193,7 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
             dof="trilinear", count=[count] * 3, spacing=(ext / (count - 1)).tolist(),
             radius=0.0, mass=p.mass)
         mat = p.material
-        flex.young = mat.young
+        flex.young = simulated_young(p, spec.option.timestep)
         flex.poisson = mat.poisson
         if mat.yield_strain > 0:
             flex.stressyield = [mat.yield_strain, 0.0]
@@ -211,6 +223,13 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
     scene.piece_flex = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, f"piece_{i}")
                         for i in range(len(pieces))]
     return scene
+
+
+def simulated_young(piece: Piece, timestep: float) -> float:
+    """The modulus given to MuJoCo: the material's, capped at :data:`CONDITIONING_LIMIT`."""
+    thinnest = float(min(piece.extents))
+    cap = CONDITIONING_LIMIT * piece.material.density * thinnest**2 / timestep**2
+    return float(min(piece.material.young, cap))
 
 
 def _colour(young: float) -> list[float]:
