@@ -1,0 +1,426 @@
+"""``food-fetch estimate``: run the two probes on one food and estimate what they measure.
+
+The relaxation probe (clamp to ``theta_d`` at ``omega``, hold) feeds the viscoelastic estimator
+(:func:`estimators.estimate_full_fit` or the study's :func:`estimators.estimate_three_step`) with
+the measured hinge angle and the moment averaged over both half-spoons; the induced-slip probe
+feeds :func:`estimators.estimate_friction` with both half-spoons' contact forces.  The result is
+printed (true against estimated, with errors and 95 % intervals) and optionally written as JSON.
+
+The truth.  ``g1``, ``tau1`` and ``mu`` are the material's, compared exactly.  ``K1, K2, B`` are
+not material constants: they are the SLS springs of *this piece in this clamp*.  They are defined
+by a third, purely elastic run (the same piece and clamp with ``g1 = 0``): its relaxed moment
+through eq. 7 gives the clamp's elastic stiffness ``K_el`` (N/m), the instantaneous stiffness
+``K1 + K2`` a linear viscoelastic piece of modulus ``E_0`` has here; then ``K2 = g1 K_el``,
+``K1 = K_el - K2`` and ``B = tau1 K2``.  The nominal ``2 E_0 A / l`` is reported beside it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from agents.cli_common import UsageError, add_food_options, finite, writable, write_json
+
+RELAXATION_DEFAULTS = {"theta_d": 0.0244, "omega": 0.02, "hold": 25.0}
+SLIP_DEFAULTS = {"theta_d": 0.045, "omega": 0.1, "hold": 0.5, "slide_time": 10.0}
+ELASTIC_HOLD = 2.0  # [s] hold of the purely elastic reference run (nothing relaxes)
+NAMES = ("K1", "K2", "B", "g1", "tau1", "mu")
+
+
+@dataclass
+class ProbeEstimate:
+    """What one ``estimate`` run measured (SI units; NaN where a probe was skipped/failed)."""
+
+    true: dict[str, float]
+    estimate: dict[str, float]
+    interval: dict[str, tuple[float, float]]
+    r2_clamp: float = math.nan
+    r2_hold: float = math.nan
+    reliable: bool = True
+    warnings: list[str] = field(default_factory=list)
+    details: dict[str, Any] = field(default_factory=dict)
+
+    def errors(self) -> dict[str, float]:
+        """Relative error (estimate / true - 1) per name, NaN where undefined."""
+        out = {}
+        for k in NAMES:
+            tv, ev = self.true.get(k, math.nan), self.estimate.get(k, math.nan)
+            out[k] = ev / tv - 1.0 if np.isfinite(tv) and tv != 0 and np.isfinite(ev) else math.nan
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        def num(v: float) -> float | None:
+            return float(v) if np.isfinite(v) else None
+
+        return {
+            "true": {k: num(v) for k, v in self.true.items()},
+            "estimate": {k: num(v) for k, v in self.estimate.items()},
+            "error": {k: num(v) for k, v in self.errors().items()},
+            "interval": {k: [num(lo), num(hi)] for k, (lo, hi) in self.interval.items()},
+            "r2_clamp": num(self.r2_clamp),
+            "r2_hold": num(self.r2_hold),
+            "reliable": self.reliable,
+            "warnings": self.warnings,
+            "details": self.details,
+        }
+
+
+def make_material(args: argparse.Namespace) -> Any:
+    from fetch_env.materials import Material
+
+    return Material(
+        young=args.young,
+        poisson=args.poisson,
+        density=args.density,
+        g1=args.g1,
+        tau1=args.tau1,
+        mu=args.mu,
+        plate_mu=args.plate_mu,
+        yield_strain=args.yield_strain,
+    )
+
+
+def relaxation_traces(result: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
+    """``(t, theta, M, geometry)`` of a relaxation run from the clamp start on: time from the
+    clamp start, the measured hinge angle and the moment averaged over both half-spoons."""
+    from estimators import ClampGeometry
+
+    tr = result.traces
+    t0 = float(result.extra.get("t_clamp_start", 0.0))
+    sel = tr["t"] >= t0
+    m = 0.5 * (tr["moment_left"] + tr["moment_right"])
+    geom = ClampGeometry(L=float(result.geometry["L"]), theta_0=float(result.geometry["theta_0"]))
+    return tr["t"][sel] - t0, tr["theta"][sel], m[sel], geom
+
+
+def add_noise(x: np.ndarray, sd: float, rng: np.random.Generator) -> np.ndarray:
+    return x + sd * rng.standard_normal(x.shape) if sd > 0 else x
+
+
+def elastic_stiffness(pieces: tuple[Any, ...], action: Any) -> tuple[float, dict[str, Any]]:
+    """``K_el`` (N/m): eq. 7 on a purely elastic (``g1 = 0``) run of the same clamp."""
+    from estimators import steady_moment
+    from estimators.relaxation import detect_contact, infer_kinematics
+    from fetch_env.controller import FetchSimulator
+
+    elastic = tuple(
+        dataclasses.replace(p, material=dataclasses.replace(p.material, g1=0.0)) for p in pieces
+    )
+    res = FetchSimulator(elastic).run("relaxation", dataclasses.replace(action, hold=ELASTIC_HOLD))
+    t, theta, m, geom = relaxation_traces(res)
+    kin = infer_kinematics(t, theta)
+    contact = detect_contact(t, m, kin)
+    late = t > t[-1] - 0.5 * ELASTIC_HOLD
+    k_el = float(np.mean(m[late])) / steady_moment(1.0, geom, contact.theta_1, kin.theta_d)
+    return k_el, {
+        "theta_1": contact.theta_1,
+        "M_relaxed": float(np.mean(m[late])),
+        "wall_time": res.wall_time,
+    }
+
+
+def nominal_stiffness(piece: Any) -> float:
+    """``2 E_0 A / l`` (N/m): both faces squeeze the piece of width ``l`` and mid-section ``A``."""
+    ex, ey, ez = piece.extents
+    area = ex * ez if piece.shape == "cube" else math.pi / 4 * ex * ez
+    return 2.0 * piece.material.young * area / ey
+
+
+def run_relaxation_probe(
+    pieces: tuple[Any, ...],
+    theta_d: float,
+    omega: float,
+    hold: float,
+    method: str = "full",
+    noise: float = 0.0,
+    seed: int = 0,
+    clamp_weight: float = 1.0,
+    lift_speed: float | None = None,
+) -> dict[str, Any]:
+    """Run the relaxation probe and estimate K1, K2, B, g1, tau1 (never raises EstimationError:
+    a failure is reported in ``error``).  Returns a dict with the estimate, the traces used and
+    the fitted curve."""
+    from estimators import EstimationError, SLSParams, moment_trace
+    from estimators.relaxation import (
+        estimate_full_fit,
+        estimate_three_step,
+        infer_kinematics,
+    )
+    from fetch_env.controller import FetchAction, FetchSimulator
+
+    kw: dict[str, Any] = {"theta_d": theta_d, "omega": omega, "hold": hold}
+    if lift_speed is not None:
+        kw["lift_speed"] = lift_speed
+    action = FetchAction(**kw)
+    res = FetchSimulator(pieces).run("relaxation", action)
+    t, theta, m_clean, geom = relaxation_traces(res)
+    rng = np.random.default_rng(seed)
+    m = add_noise(m_clean, noise * float(np.max(np.abs(m_clean))), rng)
+    out: dict[str, Any] = {
+        "t": t,
+        "theta": theta,
+        "M": m,
+        "geometry": geom,
+        "action": action,
+        "wall_sim": res.wall_time,
+        "estimate": None,
+        "error": None,
+        "max_log_strain": float(res.traces["max_log_strain"].max()),
+    }
+    t0 = time.perf_counter()
+    try:
+        if method == "full":
+            est = estimate_full_fit(t, theta, m, geom, clamp_weight=clamp_weight)
+        else:
+            est = estimate_three_step(t, theta, m, geom)
+    except (EstimationError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        out["error"] = f"{type(exc).__name__}: {exc}"
+        return out
+    out["wall_fit"] = time.perf_counter() - t0
+    out["estimate"] = est
+    if all(np.isfinite(v) and v > 0 for v in (est.K1, est.K2, est.B)):
+        kin = infer_kinematics(t, theta)
+        out["fitted"] = moment_trace(
+            t,
+            SLSParams(est.K1, est.K2, est.B),
+            geom,
+            est.theta_1,
+            kin.theta_d,
+            kin.omega,
+            kin.t_start,
+        )
+    return out
+
+
+def run_slip_probe(
+    pieces: tuple[Any, ...],
+    theta_d: float = SLIP_DEFAULTS["theta_d"],
+    omega: float = SLIP_DEFAULTS["omega"],
+    hold: float = SLIP_DEFAULTS["hold"],
+    slide_time: float = SLIP_DEFAULTS["slide_time"],
+    noise: float = 0.0,
+    seed: int = 0,
+) -> dict[str, Any]:
+    """Run the induced-slip probe and estimate mu (a failure is reported in ``error``)."""
+    from estimators import EstimationError, estimate_friction
+    from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator
+
+    action = FetchAction(theta_d=theta_d, omega=omega, hold=hold, slide_time=slide_time)
+    res = FetchSimulator(pieces).run("slip", action)
+    tr = res.traces
+    rng = np.random.default_rng(seed + 1)
+    keys = ("normal_left", "tangential_left", "normal_right", "tangential_right")
+    scale = noise * float(max(np.max(np.abs(tr[k])) for k in keys))
+    forces = {k: add_noise(tr[k], scale, rng) for k in keys}
+    slide = tr["phase"] == PHASE_CODE["slide"]
+    out: dict[str, Any] = {
+        "t": tr["t"],
+        "forces": forces,
+        "phase": tr["phase"],
+        "action": action,
+        "wall_sim": res.wall_time,
+        "estimate": None,
+        "error": None,
+        "slide_start": float(tr["t"][slide][0]),
+        "max_log_strain": float(tr["max_log_strain"].max()),
+    }
+    try:
+        out["estimate"] = estimate_friction(
+            tr["t"], *(forces[k] for k in keys), slide_start=out["slide_start"]
+        )
+    except (EstimationError, ArithmeticError) as exc:
+        out["error"] = f"{type(exc).__name__}: {exc}"
+    return out
+
+
+def _check(args: argparse.Namespace) -> None:
+    if not 0.0 <= args.noise <= 0.5:
+        raise UsageError(f"food-fetch estimate: --noise must be in [0, 0.5], got {args.noise:g}")
+    if not 0.0 < args.clamp_weight <= 1e6:
+        raise UsageError(
+            f"food-fetch estimate: --clamp-weight must be in (0, 1e6], got {args.clamp_weight:g}"
+        )
+
+
+def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
+    from fetch_env.layouts import Piece
+
+    _check(args)
+    material = make_material(args)
+    pieces = (Piece(args.shape, args.size, material),)
+    true = {k: math.nan for k in NAMES}
+    true.update(g1=material.g1, tau1=material.tau1, mu=material.mu)
+    estimate = {k: math.nan for k in NAMES}
+    interval: dict[str, tuple[float, float]] = {}
+    out = ProbeEstimate(true=true, estimate=estimate, interval=interval)
+    theta_d = args.theta_d if args.theta_d is not None else RELAXATION_DEFAULTS["theta_d"]
+    omega = args.omega if args.omega is not None else RELAXATION_DEFAULTS["omega"]
+    hold = args.hold if args.hold is not None else RELAXATION_DEFAULTS["hold"]
+    out.details["settings"] = {
+        "method": args.method,
+        "noise": args.noise,
+        "seed": args.seed,
+        "clamp_weight": args.clamp_weight,
+        "probe": args.probe,
+    }
+    if args.probe in ("both", "relaxation"):
+        r = run_relaxation_probe(
+            pieces,
+            theta_d,
+            omega,
+            hold,
+            args.method,
+            args.noise,
+            args.seed,
+            args.clamp_weight,
+            args.lift_speed,
+        )
+        out.details["relaxation"] = {
+            "action": r["action"].to_dict(),
+            "wall_sim": r["wall_sim"],
+            "max_log_strain": r["max_log_strain"],
+        }
+        est = r["estimate"]
+        if est is None:
+            out.reliable = False
+            out.warnings.append(f"relaxation probe: {r['error']}")
+        else:
+            estimate.update(K1=est.K1, K2=est.K2, B=est.B, g1=est.g1, tau1=est.tau1)
+            interval.update({k: v for k, v in est.intervals.items() if k in NAMES})
+            out.r2_clamp, out.r2_hold = est.r2_clamp, est.r2_hold
+            out.reliable &= est.reliable
+            out.warnings += [f"relaxation probe: {w}" for w in est.warnings]
+            out.details["relaxation"].update(
+                theta_1=est.theta_1,
+                M_peak=est.M_peak,
+                M_inf=est.M_inf,
+                fit_time=r["wall_fit"],
+                method=est.method,
+            )
+        if np.isfinite(material.g1) and material.g1 > 0:
+            k_el, info = elastic_stiffness(pieces, r["action"])
+            k2 = material.g1 * k_el
+            true.update(K1=k_el - k2, K2=k2, B=material.tau1 * k2)
+            out.details["truth_K"] = {
+                "K_elastic": k_el,
+                "K_nominal": nominal_stiffness(pieces[0]),
+                **info,
+                "definition": "K1+K2 = eq. 7 stiffness of a g1=0 run",
+            }
+    if args.probe in ("both", "slip"):
+        s = run_slip_probe(pieces, slide_time=args.slide_time, noise=args.noise, seed=args.seed)
+        out.details["slip"] = {
+            "action": s["action"].to_dict(),
+            "wall_sim": s["wall_sim"],
+            "max_log_strain": s["max_log_strain"],
+        }
+        fe = s["estimate"]
+        if fe is None:
+            out.reliable = False
+            out.warnings.append(f"slip probe: {s['error']}")
+        else:
+            estimate["mu"] = fe.mu
+            interval["mu"] = fe.interval
+            out.reliable &= fe.reliable
+            out.warnings += [f"slip probe: {w}" for w in fe.warnings]
+            out.details["slip"].update(
+                window=list(fe.window),
+                mu_left=fe.mu_left,
+                mu_right=fe.mu_right,
+                n_samples=fe.n_samples,
+            )
+    return out
+
+
+def _fmt(v: float) -> str:
+    return f"{v:.6g}" if np.isfinite(v) else "-"
+
+
+def print_report(r: ProbeEstimate) -> None:
+    errs = r.errors()
+    units = {"K1": "N/m", "K2": "N/m", "B": "N s/m", "g1": "", "tau1": "s", "mu": ""}
+    print(f"{'name':<6}{'true':>12}{'estimate':>12}{'error':>10}   95 % interval")
+    for k in NAMES:
+        lo, hi = r.interval.get(k, (math.nan, math.nan))
+        err = f"{100 * errs[k]:+.3f} %" if np.isfinite(errs[k]) else "-"
+        iv = f"[{_fmt(lo)}, {_fmt(hi)}]" if np.isfinite(lo) else "-"
+        print(f"{k:<6}{_fmt(r.true[k]):>12}{_fmt(r.estimate[k]):>12}{err:>10}   {iv} {units[k]}")
+    print(f"R^2 clamp {_fmt(r.r2_clamp)}, hold {_fmt(r.r2_hold)}; reliable: {r.reliable}")
+    if "truth_K" in r.details:
+        d = r.details["truth_K"]
+        print(
+            f"true K1+K2 = {d['K_elastic']:.6g} N/m: eq. 7 on a purely elastic run "
+            f"(nominal 2 E A / l = {d['K_nominal']:.6g} N/m)"
+        )
+    for w in r.warnings:
+        print(f"warning: {w}")
+
+
+def cmd_estimate(args: argparse.Namespace) -> int:
+    result = run_estimate(args)
+    print_report(result)
+    if args.json is not None:
+        write_json(args.json, result.to_dict())
+        print(f"wrote {args.json}")
+    return 0
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "estimate",
+        help="run the relaxation and slip probes on a food and estimate K1/K2/B, g1, tau1, mu",
+        description="Run the moment-relaxation probe and the induced-slip probe on one food "
+        "piece in the simulator, estimate K1, K2, B (hence g1, tau1) and mu from the simulated "
+        "sensors, and print them against the truth with errors and 95 % intervals.",
+    )
+    add_food_options(p)
+    p.add_argument(
+        "--method",
+        choices=("full", "three-step"),
+        default="full",
+        help="viscoelastic estimator: one least-squares fit of the whole trace "
+        "(default) or the study's three-step method",
+    )
+    p.add_argument(
+        "--noise",
+        type=finite(),
+        default=0.0,
+        metavar="FRACTION",
+        help="white sensor noise added to the traces, as a fraction of the peak "
+        "moment (and of the peak contact force) (default: 0)",
+    )
+    p.add_argument(
+        "--clamp-weight",
+        type=finite(),
+        default=1.0,
+        metavar="W",
+        help="full fit: weight of clamp-phase samples relative to hold samples "
+        "(default: 1, ordinary least squares)",
+    )
+    p.add_argument(
+        "--probe",
+        choices=("both", "relaxation", "slip"),
+        default="both",
+        help="which probes to run (default: both)",
+    )
+    p.add_argument(
+        "--slide-time",
+        type=finite(),
+        default=SLIP_DEFAULTS["slide_time"],
+        metavar="S",
+        help="duration of the induced slip [s] (default: 10)",
+    )
+    p.add_argument(
+        "--json",
+        type=writable,
+        default=None,
+        metavar="FILE",
+        help="write true, estimate, error, interval, r2_clamp, r2_hold as JSON",
+    )
+    p.set_defaults(func=cmd_estimate)
