@@ -3,16 +3,27 @@
 At reset the robot probes one piece (the one nearest the layout's centre, the piece it will
 clamp first) with two short experiments on the simulated sensors:
 
-* a gentle clamp and a short hold (the ``relaxation`` experiment) whose moment trace feeds
-  :func:`estimators.estimate_full_fit` (falling back to the study's three-step method), giving
-  K1, K2, B and hence g_1 = K2 / (K1 + K2), tau_1 = B / K2;
-* an induced slip (the ``slip`` experiment) whose contact forces feed
-  :func:`estimators.estimate_friction`, giving mu.
+* a gentle clamp and a hold (the ``relaxation`` experiment: the blades start
+  ``RELAXATION_GAP`` = 0.1 mm from the food) whose moment trace (mean of both blades, clamp
+  and hold samples, t from the clamp start) feeds :func:`estimators.estimate_full_fit`
+  (falling back to the study's three-step method), giving K1, K2, B and hence
+  g_1 = K2 / (K1 + K2), tau_1 = B / K2;
+* an induced slip (the ``slip`` experiment, a short fast slide) whose contact forces feed
+  :func:`estimators.estimate_friction`, giving mu (falling back to the median force ratio
+  over the middle half of the slide when that estimator finds no plateau).
 
 The probe piece is simulated alone (a camera tells the robot where it is, and the probe's
-cost must not grow with the number of pieces).  The clamp angle of the probe is chosen from
-what the robot knows without touching the food (its geometry and the camera's piece size) so
-that the squeeze is a small strain whatever the size: a "gentle" probe.
+cost must not grow with the number of pieces).  The clamp angle of each probe is set from
+what a depth camera over the plate would see before any touch: the angle at which the blade
+faces first reach the piece's actual surface (the compiled mesh's rest vertices, see
+:func:`first_contact_angle`; for spheres and ellipsoids the mesh lies up to ~1 mm inside
+the nominal shape, so the nominal width would miss the piece), plus the angle that
+squeezes the piece by ``strain`` of its width: the same gentle squeeze for every shape.
+
+Accuracy against time (measured on held-back sampled Block scenes, see
+``docs/env_results.md`` and ``tests/test_env_slow.py``): the hold must be of the order of
+tau_1 (1 to 6 s) for g_1 and tau_1 to be identified; a short hold gives the instantaneous
+stiffness and mu well but g_1, tau_1 only coarsely.
 
 The oracle values are the material's g_1, tau_1 and mu exactly, and nominal spring constants
 for K1, K2 and B from the piece's size (see :func:`true_parameters`).
@@ -38,7 +49,7 @@ from estimators import (
 from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator, SimResult
 from fetch_env.errors import SimulationDivergedError
 from fetch_env.layouts import Piece
-from fetch_env.scene import Geometry
+from fetch_env.scene import Geometry, Scene, initial_state
 
 PARAM_NAMES: tuple[str, ...] = ("K1", "K2", "B", "mu", "g1", "tau1")
 
@@ -48,23 +59,29 @@ class ProbeConfig:
     """Settings of the two reset probes (SI units).
 
     Attributes:
-        strain: target nominal compressive strain of the relaxation probe [-]; the clamp
-            angle is set so the faces squeeze the piece by this fraction of its width.
-        omega: clamping angular velocity of both probes [rad/s].
-        hold: relaxation hold [s]; longer is more accurate and slower.
+        strain: squeeze of the relaxation probe beyond first contact, as a share of the
+            piece's width [-] (each face travels ``strain * width / 2`` past the surface).
+        omega: clamping angular velocity of the relaxation probe [rad/s].
+        hold: relaxation hold [s]; the accuracy of g_1 and tau_1 grows with it (it should
+            be of the order of tau_1), and so does the probe's cost.
         settle: settling time on the plate before each probe's clamp [s].
-        slip_strain: target strain of the slip probe's clamp [-].
+        slip_strain: squeeze of the slip probe beyond first contact [-].
+        slip_omega: clamping angular velocity of the slip probe [rad/s] (fast: its clamp
+            is only the approach to the slide).
+        slip_hold: hold before the slide [s].
         slide_distance: induced-slip travel toward the plate [m].
         slide_time: duration of the induced slip [s].
     """
 
     strain: float = 0.06
-    omega: float = 0.3
-    hold: float = 0.5
+    omega: float = 0.1
+    hold: float = 0.6
     settle: float = 0.05
-    slip_strain: float = 0.08
+    slip_strain: float = 0.1
+    slip_omega: float = 0.1
+    slip_hold: float = 0.05
     slide_distance: float = 0.002
-    slide_time: float = 0.2
+    slide_time: float = 0.3
 
 
 @dataclass
@@ -112,17 +129,46 @@ def true_parameters(piece: Piece) -> dict[str, float]:
     return {"K1": k - k2, "K2": k2, "B": m.tau1 * k2, "mu": m.mu, "g1": m.g1, "tau1": m.tau1}
 
 
-def _probe_angle(sim: FetchSimulator, piece: Piece, strain: float, experiment: str) -> float:
-    """Clamp angle that squeezes ``piece`` by ``strain`` of its width, from the known gap.
+def first_contact_angle(scene: Scene) -> tuple[float, float, float]:
+    """Where the blade faces first touch the piece, from its rest surface (a depth camera).
 
-    First contact comes after the face has travelled the open-pose gap; each face then
-    moves ``strain * width / 2``.  Small-angle travel of the contact section is ``L theta``.
-    The result stays below the angle at which the faces would meet.
+    Each face is at ``pose.face_y(theta, depth)`` from the hinge plane at ``depth`` below the
+    axis; a surface vertex at lateral distance ``y`` and depth ``h`` is reached when
+    ``face_offset / cos(theta) - h tan(theta) = y`` (solved by Newton's method for every
+    vertex above the blade tip).
+
+    Returns:
+        (theta_contact [rad], depth of the first-touched vertex [m], the piece's half-width
+        across the faces [m]).
     """
-    pose = sim.scene_for(experiment).pose
-    travel = sim.geometry.gap + strain * piece.extents[1] / 2
-    theta = travel / pose.L
-    closed = getattr(pose, "theta_closed", math.inf)
+    d = initial_state(scene)
+    pose = scene.pose
+    v = np.asarray(d.flexvert_xpos)
+    lateral = np.abs(v[:, 1] - pose.stage_xy[1])
+    depth = pose.hinge_height - v[:, 2]
+    reach = depth < scene.geometry.blade_length
+    if not reach.any():
+        return 0.0, pose.L, float(lateral.max())
+    y, h = lateral[reach], depth[reach]
+    th = np.zeros(y.size)
+    for _ in range(8):
+        f = pose.face_offset / np.cos(th) - h * np.tan(th) - y
+        df = pose.face_offset * np.sin(th) / np.cos(th) ** 2 - h / np.cos(th) ** 2
+        th = th - f / df
+    k = int(np.argmin(th))
+    return float(max(th[k], 0.0)), float(h[k]), float(lateral.max())
+
+
+def _probe_angle(sim: FetchSimulator, strain: float, experiment: str) -> float:
+    """Clamp angle squeezing the piece by ``strain`` of its width past first contact.
+
+    Small-angle travel of the contact point is ``depth * theta``; the result stays below
+    the angle at which the faces would meet.
+    """
+    scene = sim.scene_for(experiment)
+    theta_c, depth, half_width = first_contact_angle(scene)
+    theta = theta_c + strain * half_width / depth
+    closed = getattr(scene.pose, "theta_closed", math.inf)
     return float(min(theta, 0.9 * closed))
 
 
@@ -137,10 +183,11 @@ def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str
     """
     tr = result.traces
     t0 = float(result.extra.get("t_clamp_start", 0.0))
-    sel = tr["t"] >= t0
+    sel = (tr["t"] >= t0) & np.isin(tr["phase"], [PHASE_CODE["clamp"], PHASE_CODE["hold"]])
     geom = ClampGeometry(L=float(result.geometry["L"]), theta_0=float(result.geometry["theta_0"]))
     # The commanded angle, not the measured one: the servo sags by ~1e-5 rad under load, more
-    # than the estimators' plateau tolerance, and a position-controlled motor knows its command.
+    # than the estimators' plateau tolerance (the hold is then not found on spheres), and a
+    # position-controlled motor knows its command.
     args = (tr["t"][sel] - t0, tr["theta_cmd"][sel], _mean_moment(tr)[sel], geom)
     kw = {"omega": result.action.omega, "theta_d": result.action.theta_d}
     errors: list[str] = []
@@ -164,12 +211,27 @@ def estimate_mu(result: SimResult) -> tuple[float, list[str]]:
     slide = tr["phase"] == PHASE_CODE["slide"]
     if not slide.any():
         raise EstimationError("the slip run has no slide phase")
-    est = estimate_friction(tr["t"], tr["normal_left"], tr["tangential_left"],
-                            tr["normal_right"], tr["tangential_right"],
-                            slide_start=float(tr["t"][slide][0]))
-    if not (np.isfinite(est.mu) and est.mu >= 0):
-        raise EstimationError(f"friction estimate is not finite: {est.mu!r}")
-    return float(est.mu), list(est.warnings)
+    try:
+        est = estimate_friction(tr["t"], tr["normal_left"], tr["tangential_left"],
+                                tr["normal_right"], tr["tangential_right"],
+                                slide_start=float(tr["t"][slide][0]))
+        mu, warns = float(est.mu), list(est.warnings)
+    except (EstimationError, ArithmeticError) as exc:
+        # The estimator's plateau test is strict for a short, fast slide (the ratio drifts by
+        # ~1 % as the normal force relaxes): fall back to the median ratio of the summed forces
+        # over the middle half of the slide, where both blades slide steadily.
+        idx = np.flatnonzero(slide)
+        mid = idx[len(idx) // 4: 3 * len(idx) // 4]
+        normal = tr["normal_left"][mid] + tr["normal_right"][mid]
+        tang = tr["tangential_left"][mid] + tr["tangential_right"][mid]
+        grip = normal > 0.05 * max(float(normal.max()), 1e-12)
+        if grip.sum() < 5:
+            raise EstimationError(f"{exc}; and no steady grip for the fallback") from exc
+        mu = float(np.median(tang[grip] / normal[grip]))
+        warns = [f"estimate_friction: {exc}; mu from the median force ratio of the slide"]
+    if not (np.isfinite(mu) and mu >= 0):
+        raise EstimationError(f"friction estimate is not finite: {mu!r}")
+    return mu, warns
 
 
 def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometry | None = None,
@@ -189,7 +251,7 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     details: dict[str, Any] = {}
     visco_ok = friction_ok = False
     try:
-        theta_d = _probe_angle(sim, piece, config.strain, "relaxation")
+        theta_d = _probe_angle(sim, config.strain, "relaxation")
         action = FetchAction(theta_d=theta_d, omega=config.omega, hold=config.hold,
                              settle=config.settle)
         res = sim.run("relaxation", action)
@@ -204,8 +266,8 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     except (EstimationError, SimulationDivergedError, ArithmeticError) as exc:
         warnings.append(f"relaxation probe: {exc}")
     try:
-        theta_d = _probe_angle(sim, piece, config.slip_strain, "slip")
-        action = FetchAction(theta_d=theta_d, omega=config.omega, hold=0.05,
+        theta_d = _probe_angle(sim, config.slip_strain, "slip")
+        action = FetchAction(theta_d=theta_d, omega=config.slip_omega, hold=config.slip_hold,
                              settle=config.settle, slide_distance=config.slide_distance,
                              slide_time=config.slide_time)
         res = sim.run("slip", action)

@@ -372,6 +372,34 @@ def test_async_vector_env_with_two_workers_matches_single_envs() -> None:
     assert terminated.all()
 
 
+def _block_oracle() -> gym.Env:  # module level: SubprocVecEnv pickles the factory
+    return make()
+
+
+def test_sb3_subproc_vec_env_with_two_workers_matches_single_envs() -> None:
+    vec_env = pytest.importorskip("stable_baselines3.common.vec_env")
+    venv = vec_env.SubprocVecEnv([_block_oracle, _block_oracle], start_method="fork")
+    try:
+        venv.seed(5)  # SB3 seeds worker i with 5 + i
+        obs = venv.reset()
+        actions = np.stack([GENTLE, physical_to_action(0.06, 0.2, 0.02)])
+        next_obs, rewards, dones, infos = venv.step(actions)
+    finally:
+        venv.close()
+    assert dones.all()  # one fetch per episode; SB3 then resets the worker itself
+    for i in range(2):
+        env = make()
+        o, _ = env.reset(seed=5 + i)
+        _, r, terminated, truncated, info = env.step(actions[i])
+        assert terminated and not truncated
+        np.testing.assert_array_equal(obs[i], o)
+        np.testing.assert_array_equal(infos[i]["terminal_observation"], o)
+        assert rewards[i] == pytest.approx(r, abs=1e-6)  # float32 in the VecEnv
+        assert infos[i]["fetch_rate"] == info["fetch_rate"]
+        assert infos[i]["TimeLimit.truncated"] is False
+        assert np.isfinite(next_obs[i]).all() and next_obs[i].shape == o.shape
+
+
 # ------------------------------------------------------------------ bad input, divergence
 
 
