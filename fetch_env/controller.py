@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -227,19 +228,29 @@ class FetchSimulator:
         if experiment == "relaxation":
             geometry = dataclasses.replace(geometry, gap=min(geometry.gap, RELAXATION_GAP))
         if experiment == "slip":
+            # Blade tips at half the lowest piece's centroid height: well below its equator, so
+            # the faces grip its widest section and drag it onto the plate (tips above the
+            # equator crush a low ellipsoid; a sphere gripped near its equator stick-slips).
+            # The blades do not collide with the plate, so the slide may take the tips below it.
+            centroid = min(0.5 * float(p.extents[2]) for p in self.pieces)
             geometry = dataclasses.replace(geometry, tip_clearance=max(
-                geometry.tip_clearance, 0.006))
+                geometry.tip_clearance, 0.5 * centroid))
         if geometry not in self._scenes:
             self._scenes[geometry] = build_scene(self.pieces, geometry, self.timestep)
         return self._scenes[geometry]
 
-    def run(self, experiment: str = "fetch", action: FetchAction | None = None) -> SimResult:
-        """Simulate ``experiment`` with ``action``; validates both before any physics."""
+    def run(self, experiment: str = "fetch", action: FetchAction | None = None,
+            observer: Callable[[mujoco.MjData], None] | None = None) -> SimResult:
+        """Simulate ``experiment`` with ``action``; validates both before any physics.
+
+        ``observer(data)``, if given, is called at every recorded sample (``record_hz``) with
+        the live ``MjData`` (e.g. to render frames); it must not modify it.
+        """
         require(experiment in EXPERIMENTS, "experiment", experiment, f"one of {EXPERIMENTS}")
         action = action or FetchAction()
         require(isinstance(action, FetchAction), "action", action, "a FetchAction")
         scene = self.scene_for(experiment)
-        return _run(scene, experiment, action, self.record_hz)
+        return _run(scene, experiment, action, self.record_hz, observer)
 
 
 def servo_commands(scene: Scene, profile: Profile) -> tuple[np.ndarray, np.ndarray]:
@@ -257,7 +268,8 @@ def servo_commands(scene: Scene, profile: Profile) -> tuple[np.ndarray, np.ndarr
     return hinge, lift
 
 
-def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float) -> SimResult:
+def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
+         observer: Callable[[mujoco.MjData], None] | None = None) -> SimResult:
     m = scene.model
     d = initial_state(scene)
     ids = scene.ids
@@ -324,6 +336,8 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float) -
             low_now, _ = piece_positions(scene, d)
             lowest_z = np.minimum(lowest_z, low_now)
             le_trace[r] = strain.piece_strain(d)
+            if observer is not None:
+                observer(d)
             r += 1
     wall = time.perf_counter() - wall
     if not np.isfinite(d.qpos).all():
