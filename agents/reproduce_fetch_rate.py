@@ -1,0 +1,254 @@
+"""``food-fetch reproduce fetch-rate``: the study's fetch findings, rerun on the simulator.
+
+Runs the fetches of the study's scenes (PAPER.md, "Results the study reports"): a single row
+of cubes at four spacings, two rows of soft or hard cubes at two clamp angles, diced soft
+pieces at three clamp angles and diced mixes with hard pieces. Every scene is fixed (the
+study's layouts, or diced mixes drawn from fixed seeds), so the table is reproducible. It
+writes ``fetch_rate.json`` (every number), ``fetch_rate_table.md`` (the table, with the
+study's finding beside each group and whether the simulator agrees) and
+``figures/fetch_rate_*.png`` under ``--out``.
+
+A dispatcher (``agents/cmd_reproduce.py``) imports this module lazily and calls
+:func:`add_arguments` on its sub-parser and :func:`run` with the parsed arguments.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+# The study's fetch: clamp at 0.1 rad/s, lift 5 mm at 5 mm/s (PAPER.md, diced setup).
+OMEGA = 0.1  # [rad/s]
+LIFT_SPEED = 0.005  # [m/s]
+LIFT_HEIGHT = 0.005  # [m]
+HOLD = 1.0  # [s] hold at theta_d before the lift
+AIR_HOLD = 1.0  # [s] hold in the air before counting
+SINGLE_ROW_THETA = 0.045  # [rad] the study does not state it for the single row
+N_DICED_MIXES = 3  # diced mixes with hard pieces, drawn from --seed on
+LARGE_LE = 0.34  # the study's "no large deformation" limit
+
+
+@dataclass(frozen=True)
+class Case:
+    group: str
+    label: str
+    theta_d: float
+    scene: Callable[[], tuple[Any, ...]]
+
+
+def cases(quick: bool = False, seed: int = 0) -> list[Case]:
+    """The scenes and clamp angles of the study's fetch findings (diced mixes from
+    ``seed``, ``seed + 1``, ``seed + 2``)."""
+    from fetch_env.env_scenes import SCENE_PRESETS, _diced
+    from fetch_env.layouts import single_row, two_rows
+    from fetch_env.materials import PRESETS, STUDY_LEVELS
+
+    out: list[Case] = []
+    for s in (0.001, 0.0005, 0.0003, 0.0001):
+        out.append(Case("single_row", f"{s * 1e3:g} mm", SINGLE_ROW_THETA,
+                        lambda s=s: single_row(spacing_across=s)))
+    for mat in ("soft-0.2MPa", "hard-200MPa"):
+        for th in (0.0425, 0.045):
+            out.append(Case("two_rows", f"{mat.split('-')[0]} {th:g} rad", th,
+                            lambda mat=mat: two_rows(material=PRESETS[mat])))
+    for th in (0.045, 0.085, 0.09):
+        out.append(Case("diced_soft", f"{th:g} rad", th, SCENE_PRESETS["diced-soft"]))
+    for k in range(1 if quick else N_DICED_MIXES):
+        out.append(Case("diced_mix", f"mix seed {seed + k} 0.085 rad", 0.085,
+                        _diced(STUDY_LEVELS, seed=seed + k, n=6)))
+    return out
+
+
+STUDY: dict[str, str] = {
+    "single_row": "fetch rate highest at the tightest spacing (0.1 mm); no large plastic strain",
+    "two_rows": "soft (0.2 MPa) fetched better than hard (200 MPa) at the same theta_d; best "
+                "with LE < 0.34",
+    "diced_soft": "0.045 rad: LE < 0.1 but pieces fall in the lift; 0.085: all fetched; 0.09: "
+                  "all fetched, LE > 0.38 in the clamp (> 0.43 in the lift)",
+    "diced_mix": "hard pieces escape during the clamp, lowering the fetch rate",
+}
+
+
+def run_case(case: Case) -> dict[str, Any]:
+    """One fetch of ``case``; a diverged simulation is recorded, not raised."""
+    from fetch_env.controller import FetchAction, FetchSimulator
+    from fetch_env.errors import SimulationDivergedError
+
+    pieces = case.scene()
+    action = FetchAction(theta_d=case.theta_d, omega=OMEGA, lift_speed=LIFT_SPEED,
+                         hold=HOLD, lift_height=LIFT_HEIGHT, air_hold=AIR_HOLD)
+    row: dict[str, Any] = {"group": case.group, "label": case.label, "theta_d": case.theta_d,
+                           "n_pieces": len(pieces),
+                           "materials": sorted({p.material.name for p in pieces})}
+    try:
+        r = FetchSimulator(pieces).run("fetch", action)
+    except SimulationDivergedError as exc:
+        row["error"] = exc.one_line()
+        return row
+    hard = [p["young"] >= 5e6 for p in r.pieces]
+    row.update(
+        fetch_rate=r.fetch_rate, fetch_rate_mass=r.fetch_rate_mass,
+        le_clamp=max(p["max_log_strain_clamp"] for p in r.pieces),
+        le_lift=max(p["max_log_strain_lift"] for p in r.pieces),
+        residual_plastic=max(p["residual_plastic_strain"] for p in r.pieces),
+        fetched=[p["fetched"] for p in r.pieces], hard=hard,
+        stalled_at=r.extra.get("stalled_at"), wall_time=r.wall_time,
+        fetch_rate_hard=(float(np.mean([f for f, h in zip(
+            [p["fetched"] for p in r.pieces], hard, strict=True) if h])) if any(hard)
+            else None),
+        fetch_rate_soft=(float(np.mean([f for f, h in zip(
+            [p["fetched"] for p in r.pieces], hard, strict=True) if not h]))
+            if not all(hard) else None))
+    return row
+
+
+def verdicts(rows: list[dict[str, Any]]) -> dict[str, tuple[str, str]]:
+    """Per group: (what the simulator shows, 'agrees' / 'disagrees' / 'partly')."""
+    by: dict[str, list[dict[str, Any]]] = {}
+    for r in rows:
+        by.setdefault(r["group"], []).append(r)
+    out: dict[str, tuple[str, str]] = {}
+
+    def fr(r: dict[str, Any]) -> float:
+        return float(r.get("fetch_rate", math.nan))
+
+    if "single_row" in by:
+        g = by["single_row"]
+        best = max(fr(r) for r in g)
+        tight = fr(g[-1])
+        le = max(r.get("le_lift", math.nan) for r in g)
+        ok = tight >= best and tight > min(fr(r) for r in g)
+        out["single_row"] = (
+            f"fetch rate {' / '.join(f'{fr(r):.2f}' for r in g)} at 1 / 0.5 / 0.3 / 0.1 mm; "
+            f"max LE {le:.2f}",
+            "agrees" if ok else ("partly" if tight >= best else "disagrees"))
+    if "two_rows" in by:
+        g = {r["label"]: r for r in by["two_rows"]}
+        pairs = [(g.get(f"soft {th:g} rad"), g.get(f"hard {th:g} rad")) for th in (0.0425, 0.045)]
+        better = [s is not None and h is not None and fr(s) > fr(h) for s, h in pairs]
+        ties = [s is not None and h is not None and fr(s) == fr(h) for s, h in pairs]
+        text = "; ".join(f"{th:g} rad soft {fr(s):.2f} (LE {s.get('le_lift', math.nan):.2f}) "
+                         f"vs hard {fr(h):.2f}" for th, (s, h) in zip((0.0425, 0.045), pairs,
+                                                                       strict=True)
+                         if s is not None and h is not None)
+        out["two_rows"] = (text, "agrees" if all(better) else
+                           ("partly" if any(better) or all(ties) else "disagrees"))
+    if "diced_soft" in by:
+        g = {r["theta_d"]: r for r in by["diced_soft"]}
+        a, b, c = g.get(0.045, {}), g.get(0.085, {}), g.get(0.09, {})
+        checks = [fr(a) < 1 and a.get("le_clamp", 1) < 0.1, fr(b) == 1.0,
+                  fr(c) == 1.0 and c.get("le_clamp", 0) > 0.38]
+        text = "; ".join(f"{th:g} rad: fetch {fr(r):.2f}, LE clamp "
+                         f"{r.get('le_clamp', math.nan):.2f} lift {r.get('le_lift', math.nan):.2f}"
+                         for th, r in ((0.045, a), (0.085, b), (0.09, c)))
+        out["diced_soft"] = (text, "agrees" if all(checks) else
+                             ("partly" if any(checks) else "disagrees"))
+    if "diced_mix" in by:
+        g = by["diced_mix"]
+        hard = [r["fetch_rate_hard"] for r in g if r.get("fetch_rate_hard") is not None]
+        soft = [r["fetch_rate_soft"] for r in g if r.get("fetch_rate_soft") is not None]
+        h, s = (float(np.mean(hard)) if hard else math.nan), (float(np.mean(soft)) if soft
+                                                               else math.nan)
+        text = (f"mean fetch rate {np.mean([fr(r) for r in g]):.2f} over {len(g)} mixes; hard "
+                f"(>= 5 MPa) pieces {h:.2f}, soft pieces {s:.2f}")
+        out["diced_mix"] = (text, "agrees" if h < s else "disagrees")
+    return out
+
+
+def table(rows: list[dict[str, Any]]) -> str:
+    v = verdicts(rows)
+    lines = ["| group | case | theta_d [rad] | fetch rate | LE clamp | LE lift | note |",
+             "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if "error" in r:
+            lines.append(f"| {r['group']} | {r['label']} | {r['theta_d']:g} | diverged | | | "
+                         f"{r['error'][:60]} |")
+            continue
+        note = []
+        if r.get("fetch_rate_hard") is not None and r.get("fetch_rate_soft") is not None:
+            note.append(f"hard {r['fetch_rate_hard']:.2f}, soft {r['fetch_rate_soft']:.2f}")
+        if r.get("stalled_at") is not None:
+            note.append(f"motor stalled at {r['stalled_at']:.4f} rad")
+        lines.append(f"| {r['group']} | {r['label']} | {r['theta_d']:g} | "
+                     f"{r['fetch_rate']:.2f} | {r['le_clamp']:.3f} | {r['le_lift']:.3f} | "
+                     f"{'; '.join(note)} |")
+    lines += ["", "| group | the study | this simulator | verdict |", "|---|---|---|---|"]
+    for group, (text, verdict) in v.items():
+        lines.append(f"| {group} | {STUDY[group]} | {text} | {verdict} |")
+    return "\n".join(lines) + "\n"
+
+
+def figures(rows: list[dict[str, Any]], out: Path) -> list[Path]:
+    from agents.cmd_reproduce import pyplot, save_figure
+
+    plt = pyplot()
+    paths: list[Path] = []
+    groups = list(dict.fromkeys(r["group"] for r in rows))
+    fig, axes = plt.subplots(1, len(groups), figsize=(4 * len(groups), 3.6), squeeze=False)
+    for ax, group in zip(axes[0], groups, strict=True):
+        g = [r for r in rows if r["group"] == group]
+        x = np.arange(len(g))
+        ax.bar(x - 0.2, [r.get("fetch_rate", np.nan) for r in g], 0.4, label="fetch rate")
+        ax.bar(x + 0.2, [max(r.get("le_clamp", np.nan), r.get("le_lift", np.nan)) for r in g],
+               0.4, label="max LE")
+        ax.axhline(LARGE_LE, color="k", lw=0.8, ls="--")
+        ax.set_xticks(x, [r["label"] for r in g], rotation=30, ha="right", fontsize=8)
+        ax.set_ylim(0, 1.05)
+        ax.set_title(group)
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle("Fetch rate and max log strain (dashed: LE = 0.34)")
+    fig.tight_layout()
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    p = out / "figures" / "fetch_rate_summary.png"
+    save_figure(fig, p)
+    paths.append(p)
+    return paths
+
+
+HELP = ("the study's fetch findings: single row vs spacing, two rows soft vs hard, diced soft "
+        "at 0.045/0.085/0.09 rad, diced mixes with hard pieces")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The experiment's own options (the dispatcher adds ``--out`` and ``--seed``)."""
+    parser.add_argument("--quick", action="store_true",
+                        help="one diced mix instead of three (about a minute less)")
+    parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run every case (tqdm bar), write the JSON, the markdown table and the figure."""
+    from tqdm import tqdm
+
+    from agents.cmd_reproduce import write_text
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    seed = int(getattr(args, "seed", 0))
+    todo = cases(args.quick, seed)
+    rows = [run_case(c) for c in tqdm(todo, desc="fetch-rate", unit="fetch")]
+    write_text(out / "fetch_rate.json", json.dumps(
+        {"settings": {"omega": OMEGA, "lift_speed": LIFT_SPEED, "lift_height": LIFT_HEIGHT,
+                      "hold": HOLD, "air_hold": AIR_HOLD, "seed": seed}, "rows": rows,
+         "verdicts": verdicts(rows)}, indent=1, default=float))
+    text = table(rows)
+    write_text(out / "fetch_rate_table.md", text)
+    if not args.no_figures:
+        figures(rows, out)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="docs")
+    ap.add_argument("--seed", type=int, default=0)
+    add_arguments(ap)
+    raise SystemExit(run(ap.parse_args()))
