@@ -1,0 +1,101 @@
+"""``food-fetch train``: PPO or SAC on a FoodFetch environment (Stable-Baselines3)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from agents.cli_common import UsageError, finite
+
+ENV_HELP = "FoodFetch-Block-v0, -Row-v0, -TwoRows-v0 or -Diced-v0"
+
+
+def _log_dir(text: str) -> Path:
+    import os
+
+    p = Path(text)
+    probe = p
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if probe.exists() and (not probe.is_dir() or not os.access(probe, os.W_OK)):
+        raise argparse.ArgumentTypeError(f"cannot write to {text!r}")
+    return p
+
+
+def _positive_int(text: str) -> int:
+    value = finite(int)(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
+    return int(value)
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from agents.train import TrainError, env_ids, load_hyperparams, parse_override, train
+
+    try:
+        if args.env not in env_ids():
+            raise TrainError(f"unknown environment id {args.env!r}; "
+                             f"choose from {', '.join(env_ids())}")
+        overrides = dict(parse_override(t) for t in args.hyperparams)
+        load_hyperparams(args.algo, args.env, args.hyperparams_file, overrides)  # fail early
+        if args.resume is not None and not Path(args.resume).is_file():
+            raise TrainError(f"checkpoint not found: {args.resume!r}")
+        try:
+            import stable_baselines3  # noqa: F401
+            import torch  # noqa: F401
+        except ImportError:
+            raise TrainError("training needs the train extra: pip install -e '.[train]'") from None
+        import sys
+
+        out = train(args.algo, args.env, args.timesteps, args.seed, args.log_dir,
+                    resume=args.resume, hyperparams_file=args.hyperparams_file,
+                    overrides=overrides, progress=not args.no_progress, threads=args.threads,
+                    verbose=args.verbose, eval_enabled=not args.no_eval,
+                    command=["food-fetch", *sys.argv[1:]])
+    except TrainError as exc:
+        raise UsageError(f"food-fetch train: {exc}") from None
+    print(f"saved model       {out}")
+    print(f"config            {out.parent / 'config.yml'}")
+    print(f"evaluate with     food-fetch evaluate --agent {out} --env {args.env}")
+    return 0
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "train",
+        help="train PPO or SAC on a FoodFetch environment (Stable-Baselines3)",
+        description="Train PPO or SAC with the hyperparameters shipped for the environment "
+        "id (agents/hyperparams/<algo>.yml, rl-baselines3-zoo style). Writes model.zip, "
+        "config.yml (to repeat the run), progress.csv, monitor/, eval/ (periodic evaluation, "
+        "best model) and checkpoints/ under --log-dir. Needs the train extra "
+        "(stable-baselines3, torch).",
+    )
+    p.add_argument("--algo", choices=("ppo", "sac"), default="ppo",
+                   help="algorithm (default: ppo)")
+    p.add_argument("--env", default="FoodFetch-Block-v0", metavar="ID",
+                   help=f"environment id: {ENV_HELP} (default: FoodFetch-Block-v0)")
+    p.add_argument("--timesteps", type=_positive_int, default=None, metavar="N",
+                   help="total environment steps (= fetches); default: n_timesteps of the "
+                   "YAML; with --resume, the total including the checkpoint's steps")
+    p.add_argument("--seed", type=finite(int), default=0, metavar="S",
+                   help="seed of the policy and the training scenes (default: 0)")
+    p.add_argument("--log-dir", type=_log_dir, default=Path("runs/train"), metavar="DIR",
+                   help="output directory, created if missing (default: runs/train)")
+    p.add_argument("--resume", default=None, metavar="CHECKPOINT",
+                   help="continue from a saved model or checkpoint .zip (SAC also reloads the "
+                   "replay buffer saved next to it)")
+    p.add_argument("--hyperparams-file", default=None, metavar="YAML",
+                   help="use this YAML instead of the shipped one (same layout)")
+    p.add_argument("--hyperparams", nargs="*", default=[], metavar="KEY=VALUE",
+                   help="override hyperparameters, values read as YAML "
+                   "(e.g. learning_rate=1e-3 n_envs=2)")
+    p.add_argument("--threads", type=_positive_int, default=1, metavar="K",
+                   help="torch threads (default: 1)")
+    p.add_argument("--no-eval", action="store_true", help="skip the periodic evaluation")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--verbose", type=int, choices=(0, 1), default=0,
+                   help="1: print SB3's training table (default: 0)")
+    p.set_defaults(func=cmd_train)

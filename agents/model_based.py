@@ -1,0 +1,157 @@
+"""``model-based``: the clamp angle from the estimated food properties and the camera's sizes.
+
+The model (SI units throughout; numbers in :class:`ModelBasedConfig`):
+
+* **Geometry** (``fetch_env.scene.Geometry``): the half-spoons' contact faces are vertical at
+  the open pose, ``gap`` from the food on each side, and rotate about a hinge
+  ``hinge_height`` above the plate.  The contact section at the food's centroid height is
+  ``L = hinge_height - max_height / 2`` below the hinge, so at ``theta_d`` each face presses
+  ``dx = L theta_d - gap`` into the food; both faces squeeze the food's width ``w`` (the
+  camera's ``span_along``, the extent along the clamp) by ``2 dx``: nominal strain
+  ``eps = 2 dx / w``, predicted logarithmic strain ``LE = -ln(1 - eps)``.
+* **Grip**: the relaxed normal force of the standard linear solid is ``F_n = K1 dx`` (the
+  Maxwell arm K2-B has relaxed away), friction acts on both half-spoons, so the food is held
+  through the lift when ``2 mu K1 dx >= SF m (g + a_lift)``, with ``a_lift`` the lift's
+  acceleration (``lift_speed / lift_ramp``) and safety factor ``SF`` (default 3).
+* **Engagement**: a rounded piece touches a face on a small patch, where the linear spring
+  ``K1 dx`` overstates the force; in the simulator spheres and ellipsoids were held only
+  from a nominal strain of about 6-13 %, so the squeeze is at least ``eps_min`` (15 %).
+* **Strain limit**: the predicted LE must stay below ``margin * safe_log_strain`` (0.8 x
+  0.34).  When the grip needs more than that, the agent goes at most to
+  ``safe_log_strain + overshoot`` (an LE overshoot of 0.1 costs 0.5 reward; a dropped piece 1).
+* **Clamp speed and lift** from K2 and B: the Maxwell arm relaxes with ``tau1 = B / K2``; the
+  settling time ``t_s = tau1 ln(g1 / ((1 - g1) tol))`` is when the moment is within ``tol``
+  of its relaxed value.  The clamp is slowed when the instantaneous moment
+  ``L dx (K1 + K2 phi)`` (phi: the Maxwell arm's share left after a clamp of duration T)
+  would approach the motor's stall moment; the lift runs at a speed that ends it at
+  ``t_s`` (between ``lift_speed_min`` and ``lift_speed_max``), so the food is in the air
+  when the grip has settled on the relaxed force the grip rule was designed for.
+
+Fallbacks: when the viscoelastic estimate is invalid (flag 0) K1, K2, B come from a cautious
+prior (the softest food-like modulus, 0.05 MPa, and the largest g1); an invalid mu is taken
+as the lowest (0.15).  With no estimates at all the agent is then a geometry-only rule.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from agents.base import Agent
+from fetch_env.env import ACTION_RANGES, decode_observation, physical_to_action
+from fetch_env.scene import Geometry
+
+G = 9.81  # [m/s^2]
+
+
+@dataclass(frozen=True)
+class ModelBasedConfig:
+    safety_factor: float = 3.0  # on the weight plus lift inertia
+    eps_min: float = 0.15  # minimum nominal squeeze (engagement of rounded pieces)
+    safe_log_strain: float = 0.34  # the study's no-large-deformation level
+    strain_margin: float = 0.8  # predicted LE kept below margin * safe level
+    overshoot: float = 0.1  # at most this much LE above the safe level when grip needs it
+    lift_ramp: float = 0.05  # [s] time the lift takes to reach its speed
+    settling_tolerance: float = 0.1  # t_s: relaxing part within this share of the relaxed
+    omega: float = 0.1  # [rad/s] clamp speed when the motor is far from stall
+    omega_min: float = 0.02  # [rad/s]
+    stall_moment: float = 2.0  # [N m] the clamping motor's stall
+    stall_margin: float = 1.0  # keep the predicted peak moment below this share of stall
+    lift_speed_min: float = 0.004  # [m/s]
+    lift_speed_max: float = 0.02  # [m/s]
+    lift_height: float = 0.005  # [m] the env's default lift
+    hold: float = 0.5  # [s] the env's default hold before lifting
+    prior_young: float = 0.05e6  # [Pa] softest food-like modulus (fallback K1)
+    prior_g1: float = 0.6  # largest g1 (fallback: most relaxation)
+    prior_tau1: float = 3.0  # [s]
+    prior_mu: float = 0.15  # lowest mu (fallback)
+
+
+class ModelBasedAgent(Agent):
+    """Smallest clamp angle that grips with a margin and keeps the strain safe (see module)."""
+
+    name = "model-based"
+
+    def __init__(self, config: ModelBasedConfig | None = None,
+                 geometry: Geometry | None = None) -> None:
+        super().__init__()
+        self.config = config or ModelBasedConfig()
+        self.geometry = geometry or Geometry()
+        self.last_plan: dict[str, Any] = {}
+
+    # ----------------------------------------------------------------- the model
+    def plan(self, obs: np.ndarray) -> dict[str, Any]:
+        """The physical action and the numbers behind it (also kept as ``last_plan``)."""
+        c, geo = self.config, self.geometry
+        d = decode_observation(obs)
+        height = float(d["max_height"])
+        w = float(d["span_along"]) if d["span_along"] > 0 else float(d["mean_size"])
+        L = geo.hinge_height - height / 2
+        # Mass held: all the pieces (conservative for a mix, where some may escape).
+        mass = float(d["total_mass"])
+
+        visco_ok = bool(d["visco_valid"] >= 0.5 and math.isfinite(d["K1"]) and d["K1"] > 0)
+        fric_ok = bool(d["friction_valid"] >= 0.5 and math.isfinite(d["mu"]) and d["mu"] > 0)
+        if visco_ok:
+            k1, k2, b = float(d["K1"]), float(d["K2"]), float(d["B"])
+        else:  # nominal K = 2 E A / l: face area A ~ size x height, l = the width w
+            k = 2.0 * c.prior_young * float(d["mean_size"]) * height / w
+            k2 = c.prior_g1 * k
+            k1, b = k - k2, c.prior_tau1 * k2
+        mu = float(d["mu"]) if fric_ok else c.prior_mu
+        tau1 = b / k2 if k2 > 0 else c.prior_tau1
+        g1 = k2 / (k1 + k2) if (k1 + k2) > 0 else c.prior_g1
+
+        # Lift speed: finish the lift at the settling time t_s (see module docstring).
+        ratio = g1 / max((1.0 - g1) * c.settling_tolerance, 1e-9)
+        t_s = tau1 * math.log(max(ratio, 1.0))
+        t_lift = max(t_s - c.hold, 1e-3)
+        lift_speed = float(np.clip(c.lift_height / t_lift, c.lift_speed_min, c.lift_speed_max))
+        a_lift = lift_speed / c.lift_ramp
+
+        # Grip: 2 mu K1 dx >= SF m (g + a)  ->  the smallest squeeze per face.
+        dx_grip = c.safety_factor * mass * (G + a_lift) / (2.0 * mu * k1)
+        eps_grip = 2.0 * dx_grip / w
+        eps_safe = 1.0 - math.exp(-c.strain_margin * c.safe_log_strain)
+        eps_cap = 1.0 - math.exp(-(c.safe_log_strain + c.overshoot))
+        eps = max(eps_grip, c.eps_min)
+        limited = ""
+        if eps > eps_safe:
+            limited = "grip needs more squeeze than the safe strain"
+            eps = max(min(eps_grip, eps_cap), eps_safe)
+        dx = eps * w / 2.0
+        theta = (geo.gap + dx) / L
+        lo, hi = ACTION_RANGES["theta_d"]
+        theta = float(np.clip(theta, lo, hi))
+
+        # Clamp speed: keep the instantaneous moment L dx (K1 + K2 phi) below the stall.
+        omega = c.omega
+        for _ in range(8):
+            T = theta / omega
+            phi = tau1 / T * (1.0 - math.exp(-T / tau1)) if T > 0 else 1.0
+            m_peak = L * dx * (k1 + k2 * phi)
+            if m_peak <= c.stall_margin * c.stall_moment or omega <= c.omega_min:
+                break
+            omega = max(omega / 2.0, c.omega_min)
+        olo, ohi = ACTION_RANGES["omega"]
+        slo, shi = ACTION_RANGES["lift_speed"]
+        omega = float(np.clip(omega, olo, ohi))
+        lift_speed = float(np.clip(lift_speed, slo, shi))
+        le_pred = -math.log(max(1.0 - eps, 1e-9))
+        self.last_plan = {
+            "theta_d": theta, "omega": omega, "lift_speed": lift_speed, "L": L, "width": w,
+            "dx": dx, "eps": eps, "eps_grip": eps_grip, "le_pred": le_pred,
+            "grip_margin": 2.0 * mu * k1 * dx / (mass * (G + a_lift)),
+            "t_s": t_s, "m_peak": m_peak, "visco_valid": visco_ok, "friction_valid": fric_ok,
+            "limited": limited}
+        return self.last_plan
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        p = self.plan(obs)
+        return physical_to_action(p["theta_d"], p["omega"], p["lift_speed"])
+
+    def describe(self) -> dict[str, Any]:
+        return {"name": self.name, **asdict(self.config)}
