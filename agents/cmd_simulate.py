@@ -62,7 +62,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     )
     print(
         f"geometry          L {result.geometry['L'] * 1000:.2f} mm, theta_0 "
-        f"{result.geometry['theta_0']:.4f} rad"
+        f"{result.geometry['theta_0']:.4f} rad (faces vertical at the open pose), theta_closed "
+        f"{result.geometry['theta_closed']:.4f} rad, gap {result.geometry['gap'] * 1000:g} mm"
     )
     print(
         f"action            theta_d {action.theta_d:g} rad, omega {action.omega:g} rad/s, "
