@@ -28,7 +28,7 @@ import numpy as np
 from agents.cli_common import UsageError, add_food_options, finite, writable, write_json
 
 RELAXATION_DEFAULTS = {"theta_d": 0.0244, "omega": 0.02, "hold": 25.0}
-SLIP_DEFAULTS = {"theta_d": 0.045, "omega": 0.1, "hold": 0.5, "slide_time": 10.0}
+SLIP_DEFAULTS = {"theta_d": 0.06, "omega": 0.1, "hold": 0.5, "slide_time": 10.0}
 ELASTIC_HOLD = 2.0  # [s] hold of the purely elastic reference run (nothing relaxes)
 NAMES = ("K1", "K2", "B", "g1", "tau1", "mu")
 

@@ -1,7 +1,7 @@
 """``food-fetch reproduce friction``: the study's Fig. 4, mu by induced slippage.
 
 Cube, ellipsoid and sphere (15 mm, 0.2 MPa) at true mu 0.1 / 0.2 / 0.3 / 0.5: each is clamped to
-0.045 rad at 0.1 rad/s, held 0.5 s, then the closed pair moves 5 mm toward the plate over
+0.06 rad at 0.1 rad/s, held 0.5 s, then the closed pair moves 5 mm toward the plate over
 ``--slide-time`` s (the study: 10 s); ``estimators.estimate_friction`` finds the steady slide and
 returns mu with a 95 % interval.  Writes ``friction.csv``/``friction.md`` (per run, the study's
 worst deviation at that mu beside ours), ``friction_by_shape.md`` and ``fig4_friction.png``.

@@ -15,6 +15,7 @@ whose sample size is corrected for autocorrelation (AR(1) effective sample size)
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -63,6 +64,16 @@ def _rolling(x: NDArray[np.float64], w: int) -> tuple[NDArray[np.float64], NDArr
     mean = s1 / w
     var = np.maximum(s2 / w - mean * mean, 0.0)
     return mean, np.sqrt(var)
+
+
+def _running_median(x: NDArray[np.float64], k: int) -> NDArray[np.float64]:
+    """Centred running median of odd length ``k`` ignoring NaN (edges use what exists)."""
+    h = k // 2
+    pad = np.concatenate((np.full(h, np.nan), x, np.full(h, np.nan)))
+    win = np.lib.stride_tricks.sliding_window_view(pad, k)
+    with warnings.catch_warnings():  # all-NaN windows (no contact) are expected
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmedian(win, axis=1)
 
 
 def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
@@ -147,10 +158,24 @@ def estimate_friction(
     level = float(np.median(rv))
     noise_floor = max(sigma, 1e-6 * abs(level), 1e-12)
 
-    r0 = np.where(valid, ratio, 0.0)
-    mean_w, sd_w = _rolling(r0, w)
+    # Isolated spikes (a contact chattering for a sample or two) would split a steady slide
+    # into fragments: drop samples far (> 8 sd) from their 5-sample running median, and let a
+    # window count as full with up to 5 % of its samples dropped.
+    spike = np.zeros(n, dtype=bool)
+    if n >= 5:
+        rm = _running_median(np.where(valid, ratio, np.nan), 5)
+        dev = np.abs(ratio - rm)
+        spike = valid & np.isfinite(rm) & (dev > 8.0 * max(sigma, 1e-9 * abs(level)))
+    good = valid & ~spike
+    r0 = np.where(good, ratio, 0.0)
+    cnt, _ = _rolling(good.astype(np.float64), w)
+    sum1, _ = _rolling(r0, w)
+    sum2, _ = _rolling(r0 * r0, w)
+    safe = np.maximum(cnt, 1e-12)
+    mean_w = sum1 / safe
+    sd_w = np.sqrt(np.maximum(sum2 / safe - mean_w * mean_w, 0.0))
     ok_w, _ = _rolling(valid.astype(np.float64), w)
-    full_w = ok_w > 1.0 - 1e-12
+    full_w = (ok_w > 1.0 - 1e-12) & (cnt >= 0.95 - 1e-12)
     # Within-window noise: 2nd differences under-read correlated noise, so also use the median
     # rolling sd (plateaus -- static and sliding -- fill most of a run).
     if full_w.any():
@@ -185,13 +210,15 @@ def estimate_friction(
     # from the rest of the window: the slow tail of the transient.
     bs = max(w // 2, 2)
     while i1 - i0 >= 4 * bs:
-        head = ratio[i0 : i0 + bs]
-        rest = ratio[i0 + bs : i1]
+        head = ratio[i0 : i0 + bs][good[i0 : i0 + bs]]
+        rest = ratio[i0 + bs : i1][good[i0 + bs : i1]]
+        if head.size < 2 or rest.size < 2:
+            break
         sd_r = float(np.std(rest, ddof=1))
         if abs(float(head.mean()) - float(rest.mean())) <= 3.0 * sd_r / math.sqrt(bs):
             break
         i0 += bs
-    sel = slice(i0, i1)
+    sel = np.arange(i0, i1)[good[i0:i1]]
     N_w, T_w = n_tot[sel], t_tot[sel]
     # A steady slide has no trend: reject a ratio that keeps drifting across the window.
     tw, rw = tt[sel], ratio[sel]

@@ -211,7 +211,11 @@ def infer_kinematics(
     """
     tt, tr = check_traces(t, min_samples=_MIN_SAMPLES, theta=theta)
     th = tr["theta"]
-    th_max = float(th.max())
+    # Largest angle, robust to single-sample glitches: the max of a 5-sample running median.
+    if th.size >= 5:
+        th_max = float(np.max(np.median(np.lib.stride_tricks.sliding_window_view(th, 5), axis=1)))
+    else:
+        th_max = float(th.max())
     if th_max <= 0.0:
         raise EstimationError(
             f"theta never grows (max theta = {th_max!r} rad); expected a closing clamp"
@@ -229,12 +233,10 @@ def infer_kinematics(
     elif not (np.isfinite(theta_d) and theta_d > 0.0):
         raise EstimationError(f"theta_d must be finite and > 0 rad, got {theta_d!r}")
     on_plateau = np.abs(th - theta_d) <= tol
-    # The hold: from the first sample that reaches the plateau after the last sample well below
-    # it (the end of the ramp) to the end, if nearly all of it stays on the plateau.
+    # The hold: the samples after the last one well below the plateau (the end of the ramp), if
+    # at least 90 % of them are on it (an angle that keeps creeping is no hold).
     below = np.flatnonzero(th < theta_d - 10.0 * tol)
     i_hold = int(below[-1]) + 1 if below.size else 0
-    while i_hold < th.size and not on_plateau[i_hold]:
-        i_hold += 1
     n_hold = th.size - i_hold
     frac_on = float(on_plateau[i_hold:].mean()) if n_hold else 0.0
     if n_hold < _MIN_HOLD_SAMPLES or frac_on < 0.9 or not on_plateau[-3:].all():
