@@ -1,7 +1,8 @@
 """Benchmark of the viscoelastic estimators (a script, not a test).
 
 Times the full least-squares fit (target < 50 ms) and the study's three-step method (target
-< 5 ms) on a 10 s trace at 100 Hz (1 % of M_peak white noise), and prints the machine.
+< 5 ms) on a 10 s trace at 100 Hz (1 % of M_peak white noise), the friction estimator on a 12 s
+slip trace, and prints the machine.
 
     python benchmarks/bench_estimators.py [--repeats N]
 """
@@ -21,6 +22,7 @@ import numpy as np
 # Benchmark this checkout's package, not whatever copy happens to be installed.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from estimators.friction import estimate_friction
 from estimators.relaxation import estimate_full_fit, estimate_three_step
 from estimators.sls import ClampGeometry, SLSParams, clamp_angle, moment_trace
 
@@ -63,6 +65,17 @@ def main() -> None:
     print(f"trace: 10 s at 100 Hz (1000 samples), {args.repeats} noisy repeats")
     print(f"full fit   median {full:7.2f} ms  (target < 50 ms) {'OK' if full < 50 else 'SLOW'}")
     print(f"three-step median {three:7.2f} ms  (target <  5 ms) {'OK' if three < 5 else 'SLOW'}")
+    # Friction: a 12 s slip trace at 100 Hz (clamp, hold, 10 s slide), 1 % force noise.
+    t = np.arange(0.0, 12.0, 0.01)
+    n = np.where(t > 0.6, 4.0 * np.exp(-t / 10.0), 0.0)
+    rng = np.random.default_rng(0)
+    tang = np.where(t > 1.5, 0.3, 0.2) * n + 0.04 * rng.standard_normal(t.size)
+    times = []
+    for _ in range(args.repeats):
+        t0 = time.perf_counter()
+        estimate_friction(t, n, np.abs(tang), n, np.abs(tang))
+        times.append(time.perf_counter() - t0)
+    print(f"friction   median {1e3 * statistics.median(times):7.2f} ms  (12 s slip at 100 Hz)")
 
 
 if __name__ == "__main__":
