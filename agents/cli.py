@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from agents.cli_common import EXIT_USAGE, Parser, UsageError
 
 # One module per subcommand, in the order ``--help`` lists them.
-SUBCOMMANDS: tuple[str, ...] = ("simulate", "estimate", "reproduce")
+SUBCOMMANDS: tuple[str, ...] = ("simulate", "estimate", "reproduce", "train", "evaluate")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,170 @@
+"""``food-fetch evaluate``: agents side by side on the same seeded scenes."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from agents.cli_common import UsageError, finite, writable, write_json
+
+
+def _positive_int(text: str) -> int:
+    value = finite(int)(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
+    return int(value)
+
+
+def _out_dir(text: str) -> Path:
+    p = Path(text)
+    probe = p
+    while not probe.exists() and probe.parent != probe:
+        probe = probe.parent
+    if not probe.is_dir() or not os.access(probe, os.W_OK):
+        raise argparse.ArgumentTypeError(f"cannot write to directory {text!r}")
+    return p
+
+
+def _payload(args: argparse.Namespace, agents: list[str], records: list[dict[str, Any]],
+             summary: dict[str, Any], interrupted: bool, wall: float,
+             describe: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "env": args.env, "episodes": args.episodes, "seed": args.seed,
+        "workers": args.workers, "search_episodes": args.search_episodes,
+        "interrupted": interrupted, "episodes_finished": len(records),
+        "wall_time_s": round(wall, 2),
+        "agents": summary, "agent_settings": describe,
+        "command": ["food-fetch", *sys.argv[1:]] if sys.argv[0].endswith("food-fetch")
+        else ["food-fetch", "evaluate", *[a for a in sys.argv[1:]]],
+        "machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
+                    "python": platform.python_version()},
+        "episodes_detail": records if args.json_episodes else None,
+    }
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from agents.evaluate import (
+        REFERENCE,
+        AgentSpecError,
+        EvaluationInterrupted,
+        Task,
+        format_table,
+        make_agent,
+        record_videos,
+        run_tasks,
+        summarize,
+        write_csv,
+        write_plots,
+    )
+    from agents.train import env_ids
+
+    ids = env_ids()
+    if args.env not in ids:
+        raise UsageError(f"food-fetch evaluate: unknown environment id {args.env!r}; "
+                         f"choose from {', '.join(ids)}")
+    agents = list(dict.fromkeys(args.agent or ["random", "study", "model-based"]))
+    describe = {}
+    for spec in agents:  # fail on a bad name or path before any episode runs
+        try:
+            agent = make_agent(spec, args.env)
+            if hasattr(agent, "model"):
+                agent.model  # noqa: B018 (load now: a corrupt file is a usage error)
+            describe[spec] = agent.describe()
+        except AgentSpecError as exc:
+            raise UsageError(f"food-fetch evaluate: {exc}") from None
+        except Exception as exc:  # e.g. a model file SB3 cannot read
+            raise UsageError(f"food-fetch evaluate: cannot use agent {spec!r}: {exc}") from None
+    n_search = min(args.search_episodes or args.episodes, args.episodes)
+    tasks = [Task(a, args.env, i, args.seed + i)
+             for i in range(args.episodes) for a in agents
+             if not (a == REFERENCE and i >= n_search)]
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(tasks), unit="ep", disable=args.quiet or None, file=sys.stderr,
+               desc=f"{args.env} x {len(agents)} agents")
+    wall = time.perf_counter()
+    interrupted = False
+    try:
+        records = run_tasks(tasks, workers=args.workers, on_result=lambda _: bar.update())
+    except EvaluationInterrupted as exc:
+        records, interrupted = exc.results, True
+    finally:
+        bar.close()
+    wall = time.perf_counter() - wall
+    summary = summarize(records, agents)
+    payload = _payload(args, agents, records, summary, interrupted, wall, describe)
+    if args.json is not None:
+        write_json(args.json, payload)
+    if args.csv is not None:
+        write_csv(args.csv, records)
+    print(f"{args.env}: {args.episodes} episodes from seed {args.seed}"
+          + (f" (search on the first {n_search})" if REFERENCE in agents
+             and n_search < args.episodes else "")
+          + f", {args.workers} worker(s), {wall:.1f} s"
+          + ("  [INTERRUPTED: partial results]" if interrupted else ""))
+    print("mean ± half-width of the 95 % interval; regret = search reward - agent reward "
+          "on the same scenes")
+    print(format_table(summary, markdown=args.markdown))
+    if interrupted:
+        for path in (args.json, args.csv):
+            if path is not None:
+                print(f"wrote (partial)   {path}")
+        return 130
+    if args.plots is not None:
+        for p in write_plots(args.plots, summary, records, args.env):
+            print(f"plot              {p}")
+    if args.video is not None:
+        for p in record_videos(args.video, agents, args.env, args.seed, {}):
+            print(f"video             {p}")
+    for path in (args.json, args.csv):
+        if path is not None:
+            print(f"wrote             {path}")
+    return 0
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "evaluate",
+        help="evaluate agents side by side on the same seeded scenes",
+        description="Run each agent on the same seeded scenes (episode i uses "
+        "reset(seed=SEED+i)) and print, per agent, the mean reward, fetch rate, success "
+        "rate, mean and max logarithmic strain LE, time per fetch and regret against "
+        "'search' (the per-scene optimum found with the simulator), each with its 95 %% "
+        "interval. Agents: random, study, model-based, search, or the path of a model "
+        "saved by 'food-fetch train'. Ctrl-C stops and still writes what finished.",
+    )
+    p.add_argument("--agent", action="append", metavar="NAME|PATH",
+                   help="agent to evaluate; repeat for a side-by-side table (default: random, "
+                   "study, model-based)")
+    p.add_argument("--env", default="FoodFetch-Block-v0", metavar="ID",
+                   help="environment id: FoodFetch-Block-v0, -Row-v0, -TwoRows-v0 or "
+                   "-Diced-v0 (default: FoodFetch-Block-v0)")
+    p.add_argument("--episodes", type=_positive_int, default=20, metavar="N",
+                   help="episodes (scenes) per agent (default: 20)")
+    p.add_argument("--seed", type=finite(int), default=0, metavar="S",
+                   help="seed of the first scene (default: 0)")
+    p.add_argument("--workers", type=_positive_int, default=1, metavar="K",
+                   help="worker processes; any K gives the same numbers (default: 1)")
+    p.add_argument("--search-episodes", type=_positive_int, default=None, metavar="N",
+                   help="run 'search' (~20 simulations per scene) on the first N scenes "
+                   "only; regret is then paired on those (default: all)")
+    p.add_argument("--json", type=writable, default=None, metavar="FILE",
+                   help="write the summary (and settings, machine) as JSON")
+    p.add_argument("--json-episodes", action="store_true",
+                   help="also put every episode's record in the JSON")
+    p.add_argument("--csv", type=writable, default=None, metavar="FILE",
+                   help="write one row per (agent, episode)")
+    p.add_argument("--plots", type=_out_dir, default=None, metavar="DIR",
+                   help="write reward.png, fetch_rate.png, theta_vs_stiffness.png")
+    p.add_argument("--video", type=_out_dir, default=None, metavar="DIR",
+                   help="record each agent's first episode (needs an OpenGL backend, e.g. "
+                   "MUJOCO_GL=egl)")
+    p.add_argument("--markdown", action="store_true", help="print the table as Markdown")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_evaluate)
