@@ -319,8 +319,8 @@ def test_model_estimator_is_deterministic_and_matches_its_probe() -> None:
         obs.append(o)
     assert np.array_equal(obs[0], obs[1])
     u = env.unwrapped
-    direct = run_probes(u.pieces, ProbeConfig(strain=0.03, omega=0.1, hold=0.3,
-                                              slip_strain=0.05))
+    assert u.probe_config == ProbeConfig(strain=0.06, omega=0.1, hold=0.3)
+    direct = run_probes(u.pieces, u.probe_config)
     for k, v in info["estimated_params"].items():
         if v is not None:
             assert v == direct.estimates[k]
