@@ -31,6 +31,11 @@ RELAXATION_DEFAULTS = {"theta_d": 0.0244, "omega": 0.02, "hold": 25.0}
 SLIP_DEFAULTS = {"theta_d": 0.06, "omega": 0.1, "hold": 0.5, "slide_time": 10.0}
 ELASTIC_HOLD = 2.0  # [s] hold of the purely elastic reference run (nothing relaxes)
 NAMES = ("K1", "K2", "B", "g1", "tau1", "mu")
+# Full fit on the simulator: clamp samples weigh 0.3 of hold samples.  The simulated clamp rise
+# is not exactly the SLS's (the tilted face first touches the piece's lower edge and the contact
+# grows), while eq. 6 holds in the hold; OLS (1.0) gives tau1 -3.05 % at 0.01 rad/s, 0.3 keeps
+# all four study speeds within 3 % (chosen on those runs: see docs/estimators_results.md).
+SIM_CLAMP_WEIGHT = 0.3
 
 
 @dataclass
@@ -140,7 +145,7 @@ def run_relaxation_probe(
     method: str = "full",
     noise: float = 0.0,
     seed: int = 0,
-    clamp_weight: float = 1.0,
+    clamp_weight: float = SIM_CLAMP_WEIGHT,
     lift_speed: float | None = None,
 ) -> dict[str, Any]:
     """Run the relaxation probe and estimate K1, K2, B, g1, tau1 (never raises EstimationError:
@@ -242,6 +247,11 @@ def run_slip_probe(
 def _check(args: argparse.Namespace) -> None:
     if not 0.0 <= args.noise <= 0.5:
         raise UsageError(f"food-fetch estimate: --noise must be in [0, 0.5], got {args.noise:g}")
+    if not 0.0 < args.slide_time <= 120.0:
+        raise UsageError(
+            f"food-fetch estimate: --slide-time (slide_time) must be in (0, 120] s, "
+            f"got {args.slide_time:g}"
+        )
     if not 0.0 < args.clamp_weight <= 1e6:
         raise UsageError(
             f"food-fetch estimate: --clamp-weight must be in (0, 1e6], got {args.clamp_weight:g}"
@@ -398,10 +408,10 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--clamp-weight",
         type=finite(),
-        default=1.0,
+        default=SIM_CLAMP_WEIGHT,
         metavar="W",
         help="full fit: weight of clamp-phase samples relative to hold samples "
-        "(default: 1, ordinary least squares)",
+        f"(default: {SIM_CLAMP_WEIGHT}; 1 is ordinary least squares)",
     )
     p.add_argument(
         "--probe",

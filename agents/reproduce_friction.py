@@ -179,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
     write_table(
         args.out,
         "friction_by_shape",
-        ["shape", "max |deviation| %", "mean |deviation| %", "failed runs"],
+        ["shape", "max abs deviation %", "mean abs deviation %", "failed runs"],
         by_shape,
         f"Deviation by shape. Here: {' > '.join(r[0] for r in order)}; study: {STUDY_SHAPE_ORDER}",
     )
