@@ -10,6 +10,13 @@ only when an env is made)::
 
 from __future__ import annotations
 
+import os as _os
+
+# Headless machines: MuJoCo's default GLFW backend aborts the process without a display, so
+# offscreen rendering uses EGL unless the user chose a backend (read when mujoco is imported).
+if not _os.environ.get("DISPLAY") and not _os.environ.get("WAYLAND_DISPLAY"):
+    _os.environ.setdefault("MUJOCO_GL", "egl")
+
 from gymnasium.envs.registration import register, registry
 
 # id -> entry point; every id is one fetch per episode (docstrings in fetch_env/env.py).
