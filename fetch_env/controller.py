@@ -44,6 +44,7 @@ THETA_D_RANGE = (0.0, 0.3)  # [rad]
 OMEGA_RANGE = (1e-3, 2.0)  # [rad/s]
 LIFT_SPEED_RANGE = (1e-4, 0.1)  # [m/s]
 STALL_MOMENT = 2.0  # [N m] the clamping motor stalls above this load (~50 N at L = 38 mm)
+STALL_TIME = 0.02  # [s] the load is averaged over this long before the motor stalls
 RELAXATION_GAP = 1e-4  # [m] blade-food clearance at the start of the relaxation probe
 
 
@@ -308,9 +309,12 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     wall = time.perf_counter()
     r = 0
     stall_cap = np.inf  # the angle the motor stalled at: the command never goes past it
+    load = 0.0  # the motor's load moment, low-passed over STALL_TIME (contact impulses pass)
+    smooth = 1.0 - math.exp(-dt / STALL_TIME)
     for i in range(n):
-        if stall_cap == np.inf and max(abs(d.qfrc_constraint[hinge_v[0]]),
-                                      abs(d.qfrc_constraint[hinge_v[1]])) > STALL_MOMENT:
+        load += smooth * (max(abs(d.qfrc_constraint[hinge_v[0]]),
+                              abs(d.qfrc_constraint[hinge_v[1]])) - load)
+        if stall_cap == np.inf and load > STALL_MOMENT:
             # A real clamping motor cannot push harder than its stall moment: the blades
             # stop where they are (stiff pieces are held, not crushed).
             stall_cap = 0.5 * (d.qpos[hinge_q[0]] + d.qpos[hinge_q[1]])
