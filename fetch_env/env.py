@@ -114,16 +114,18 @@ _COMMON_DOC = """
 {obs_table}
 
     ``estimator="model"``: K1, K2, B, g1, tau1 from ``estimators.estimate_full_fit`` (falling
-    back to ``estimate_three_step``) on the moment of a reset probe (clamp to a small strain
-    past first contact, hold ``probe_hold``), mu from ``estimators.estimate_friction`` on a
-    short induced-slip probe (``fetch_env.probes``);
-    a failed estimate gives 0 and a cleared flag. ``"oracle"``: the true values (g1, tau1, mu
-    of the material exactly; K1, K2, B nominal, ``K = 2 E A / l`` split by g1, see
-    ``fetch_env.probes.nominal_stiffness``). ``"none"``: zeros, flags 0 (the ablation).
-    The default ``probe_hold=0.3`` keeps the probes near a third of a Block episode and gives
-    mu and the stiffness K1 + K2, but g1 and tau1 only coarsely (a hold far shorter than
-    tau1 cannot separate them); ``probe_hold=4`` identifies them (measured accuracy in
-    ``docs/env_results.md``) at about twice the cost of the fetch.
+    back to ``estimate_three_step``) on the moment of a reset probe (clamp at ``probe_omega``
+    to ``probe_strain`` past first contact, hold ``probe_hold``), mu from an induced-slip
+    probe (``estimators.estimate_friction``, or the upper envelope of the force ratio when
+    the blades stick-slip; ``fetch_env.probes``); a failed estimate gives 0 and a cleared
+    flag. ``"oracle"``: the true values (g1, tau1, mu of the material exactly; K1, K2, B
+    nominal, ``K = 2 E A / l`` split by g1, see ``fetch_env.probes.nominal_stiffness``).
+    ``"none"``: zeros, flags 0 (the ablation).
+    The hold must be of the order of tau1 (1 to 6 s) to separate g1 from tau1: the default
+    ``probe_hold=3`` identifies them (median error about 8 % on held-back Block scenes) and
+    costs about 60 % of a Block episode; ``probe_hold=0.3`` makes the probes about a third
+    of the episode and still gives mu (median 0.2 %), but g1 and tau1 only coarsely or not
+    at all (measured trade-off in ``docs/env_results.md``).
 
     ## Rewards
     ``reward = reward_fetch + reward_deformation + reward_time`` (each in ``info``):
@@ -179,7 +181,7 @@ _COMMON_DOC = """
     | lift_height | 0.005 | lift distance [m] |
     | air_hold | 0.5 | hold in the air before counting fetched pieces [s] |
     | settle | 0.2 | settling on the plate before the clamp [s] |
-    | probe_hold | 0.3 | relaxation probe hold [s]; ~4 s (order tau1) identifies g1, tau1 |
+    | probe_hold | 3.0 | relaxation probe hold [s]; of the order of tau1 to identify g1, tau1 |
     | probe_omega | 0.1 | relaxation probe's clamping angular velocity [rad/s] |
     | probe_strain | 0.06 | relaxation probe's squeeze past first contact (share of width) |
     | render_mode | None | None, "rgb_array", "rgb_array_list" or "human" |
@@ -239,7 +241,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         lift_height: float = 0.005,
         air_hold: float = 0.5,
         settle: float = 0.2,
-        probe_hold: float = 0.3,
+        probe_hold: float = 3.0,
         probe_omega: float = 0.1,
         probe_strain: float = 0.06,
         render_mode: str | None = None,

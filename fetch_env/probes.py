@@ -9,8 +9,8 @@ clamp first) with two short experiments on the simulated sensors:
   (falling back to the study's three-step method), giving K1, K2, B and hence
   g_1 = K2 / (K1 + K2), tau_1 = B / K2;
 * an induced slip (the ``slip`` experiment, a short fast slide) whose contact forces feed
-  :func:`estimators.estimate_friction`, giving mu (falling back to the median force ratio
-  over the middle half of the slide when that estimator finds no plateau).
+  :func:`estimators.estimate_friction` and the upper envelope of the force ratio (Coulomb
+  bounds the ratio by mu; a stick-slipping slide reaches it only while slipping), giving mu.
 
 The probe piece is simulated alone (a camera tells the robot where it is, and the probe's
 cost must not grow with the number of pieces).  The clamp angle of each probe is set from
@@ -22,8 +22,11 @@ squeezes the piece by ``strain`` of its width: the same gentle squeeze for every
 
 Accuracy against time (measured on held-back sampled Block scenes, see
 ``docs/env_results.md`` and ``tests/test_env_slow.py``): the hold must be of the order of
-tau_1 (1 to 6 s) for g_1 and tau_1 to be identified; a short hold gives the instantaneous
-stiffness and mu well but g_1, tau_1 only coarsely.
+tau_1 (1 to 6 s) for g_1 and tau_1 to be identified: over a hold h << tau_1 the decay is
+linear to within (h / tau_1)^2 / 2 and only the ratio g_1 / tau_1 shows.  The default 3 s
+hold gives g_1 and tau_1 to a median of ~8 %; mu does not depend on it (median 0.2 %).
+With the servos no longer saturating, a fast slip clamp (0.4 rad/s) is stable and saves
+~0.2 s; the relaxation clamp stays at 0.1 rad/s (0.2 and 0.4 identified g_1 less often).
 
 The oracle values are the material's g_1, tau_1 and mu exactly, and nominal spring constants
 for K1, K2 and B from the piece's size (see :func:`true_parameters`).
@@ -52,6 +55,9 @@ from fetch_env.layouts import Piece
 from fetch_env.scene import Geometry, Scene, initial_state
 
 PARAM_NAMES: tuple[str, ...] = ("K1", "K2", "B", "mu", "g1", "tau1")
+HOLD_SKIP = 0.1  # [s] start of the relaxation hold left out of the fit (servo catching up)
+CLAMP_WEIGHT = 0.3  # full fit: clamp residuals against the hold (docs/estimators_results.md)
+ENVELOPE_QUANTILE = 0.95  # slip probe: quantile of |F_t| / F_n taken as mu
 
 
 @dataclass(frozen=True)
@@ -75,10 +81,10 @@ class ProbeConfig:
 
     strain: float = 0.06
     omega: float = 0.1
-    hold: float = 0.6
+    hold: float = 3.0
     settle: float = 0.05
     slip_strain: float = 0.1
-    slip_omega: float = 0.1
+    slip_omega: float = 0.4
     slip_hold: float = 0.05
     slide_distance: float = 0.002
     slide_time: float = 0.3
@@ -183,7 +189,11 @@ def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str
     """
     tr = result.traces
     t0 = float(result.extra.get("t_clamp_start", 0.0))
+    t_d = t0 + result.action.theta_d / result.action.omega
     sel = (tr["t"] >= t0) & np.isin(tr["phase"], [PHASE_CODE["clamp"], PHASE_CODE["hold"]])
+    # The first HOLD_SKIP of the hold is the servo and the contact catching up with the
+    # command (the moment still rises for ~50 ms); eq. 6 holds after it, so leave it out.
+    sel &= ~((tr["t"] > t_d + 1e-9) & (tr["t"] < t_d + HOLD_SKIP - 1e-9))
     geom = ClampGeometry(L=float(result.geometry["L"]), theta_0=float(result.geometry["theta_0"]))
     # The commanded angle, not the measured one: the servo sags by ~1e-5 rad under load, more
     # than the estimators' plateau tolerance (the hold is then not found on spheres), and a
@@ -191,9 +201,10 @@ def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str
     args = (tr["t"][sel] - t0, tr["theta_cmd"][sel], _mean_moment(tr)[sel], geom)
     kw = {"omega": result.action.omega, "theta_d": result.action.theta_d}
     errors: list[str] = []
-    for method in (estimate_full_fit, estimate_three_step):
+    for method, extra in ((estimate_full_fit, {"clamp_weight": CLAMP_WEIGHT}),
+                          (estimate_three_step, {})):
         try:
-            est = method(*args, **kw)
+            est = method(*args, **kw, **extra)
         except (EstimationError, ArithmeticError, np.linalg.LinAlgError) as exc:
             # ArithmeticError: estimate_full_fit can overflow in math.exp on wild fits.
             errors.append(f"{method.__name__}: {type(exc).__name__}: {exc}")
@@ -206,29 +217,46 @@ def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str
 
 
 def estimate_mu(result: SimResult) -> tuple[float, list[str]]:
-    """mu from a slip run; raises :class:`EstimationError` when the trace cannot give it."""
+    """mu from a slip run; raises :class:`EstimationError` when the trace cannot give it.
+
+    Coulomb friction bounds the force ratio |F_t| / F_n by mu, and reaches it only while the
+    blades slide.  A soft or round piece stick-slips under the blades (the ratio swings
+    between ~0.05 and mu), and ``estimate_friction`` may then return a sticking plateau below
+    mu; so mu is the larger of its estimate and the upper envelope of the ratio (its
+    ``ENVELOPE_QUANTILE`` quantile over the last three quarters of the slide, where the
+    blades grip).
+    """
     tr = result.traces
     slide = tr["phase"] == PHASE_CODE["slide"]
     if not slide.any():
         raise EstimationError("the slip run has no slide phase")
+    idx = np.flatnonzero(slide)
+    late = idx[len(idx) // 4:]
+    normal = tr["normal_left"][late] + tr["normal_right"][late]
+    tang = tr["tangential_left"][late] + tr["tangential_right"][late]
+    grip = normal > 0.05 * max(float(normal.max()), 1e-12)
+    if grip.sum() < 5:
+        raise EstimationError("no steady grip during the slide (the blades lost the piece)")
+    envelope = float(np.quantile(np.abs(tang[grip]) / normal[grip], ENVELOPE_QUANTILE))
+    warns: list[str] = []
     try:
         est = estimate_friction(tr["t"], tr["normal_left"], tr["tangential_left"],
                                 tr["normal_right"], tr["tangential_right"],
                                 slide_start=float(tr["t"][slide][0]))
-        mu, warns = float(est.mu), list(est.warnings)
+        plateau = float(est.mu)
+        warns += list(est.warnings)
     except (EstimationError, ArithmeticError) as exc:
-        # The estimator's plateau test is strict for a short, fast slide (the ratio drifts by
-        # ~1 % as the normal force relaxes): fall back to the median ratio of the summed forces
-        # over the middle half of the slide, where both blades slide steadily.
-        idx = np.flatnonzero(slide)
-        mid = idx[len(idx) // 4: 3 * len(idx) // 4]
-        normal = tr["normal_left"][mid] + tr["normal_right"][mid]
-        tang = tr["tangential_left"][mid] + tr["tangential_right"][mid]
-        grip = normal > 0.05 * max(float(normal.max()), 1e-12)
-        if grip.sum() < 5:
-            raise EstimationError(f"{exc}; and no steady grip for the fallback") from exc
-        mu = float(np.median(tang[grip] / normal[grip]))
-        warns = [f"estimate_friction: {exc}; mu from the median force ratio of the slide"]
+        # Its plateau test is strict for a short slide (the ratio drifts by ~1 % as the
+        # normal force relaxes).
+        plateau = math.nan
+        warns.append(f"estimate_friction: {exc}; mu from the ratio's envelope")
+    if np.isfinite(plateau) and plateau >= envelope:
+        mu = plateau
+    else:
+        mu = envelope
+        if np.isfinite(plateau) and plateau < 0.98 * envelope:
+            warns.append(f"estimate_friction's plateau {plateau:.3g} is below the ratio's "
+                         f"envelope {envelope:.3g} (stick-slip): mu from the envelope")
     if not (np.isfinite(mu) and mu >= 0):
         raise EstimationError(f"friction estimate is not finite: {mu!r}")
     return mu, warns

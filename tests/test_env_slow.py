@@ -37,44 +37,41 @@ def _summary(e: np.ndarray) -> tuple[float, float, float]:
 
 # Measured on HELD_BACK (16 sampled Block scenes: 5 cubes, 6 ellipsoids, 5 spheres) with the
 # physics of the simulator at the time (docs/env_results.md); the tolerances are those
-# figures with a little room, so a regression of the probes or the estimators fails here.
-#   probe_hold=0.3 (default): mu identified 100 %, median |err| 0.5 %, 9 of 16 within 1 %;
-#     the other 7 (4 cubes, 2 spheres, 1 ellipsoid) are 3-73 % low (the short
-#     0.3 s slide does not always reach full slip); g1 / tau1 are not identified by so
-#     short a hold (median errors 50 % / 98 %), so only mu is held to the oracle.
-#   probe_hold=4: g1, tau1 identified on 94 %; median |err| 9 % / 10 %, max 38 % / 62 %.
+# figures with some room, so a regression of the probes or the estimators fails here.
+#   default probes (probe_hold=3): mu identified 100 %, median |err| 0.2 %, 15 of 16 within
+#     4 % (max 7 %); g1 / tau1 identified 100 %, median |err| 8.5 % / 7.6 %, 75th
+#     percentile 24 % / 16 % (max 42 % / 124 %: one stiff sphere's tau1).
+#   probe_hold=0.3 (the fast probes): mu as above; g1 / tau1 identified on < 50 %.
+
+
+def _p75(e: np.ndarray) -> float:
+    return float(np.percentile(np.abs(e[np.isfinite(e)]), 75))
 
 
 @pytest.mark.slow
-def test_default_probe_mu_agrees_with_the_oracle_on_held_back_seeds() -> None:
+def test_default_probe_estimates_agree_with_the_oracle_on_held_back_seeds() -> None:
     errs = agreement()
-    share, median, _ = _summary(errs["mu"])
+    share, median, worst = _summary(errs["mu"])
     assert share >= 0.9, f"mu identified on {share:.0%} of seeds"
-    assert median < 0.02, f"mu: {errs['mu']}"
-    # at least half of the scenes within 1 %
-    assert np.mean(np.abs(errs["mu"][np.isfinite(errs["mu"])]) < 0.01) >= 0.5
-
-
-@pytest.mark.slow
-def test_long_probe_viscoelastic_estimates_agree_with_the_oracle_on_held_back_seeds() -> None:
-    errs = agreement(probe_hold=4.0)
-    for k, median_tol, max_tol in (("g1", 0.12, 0.45), ("tau1", 0.12, 0.70)):
-        share, median, worst = _summary(errs[k])
-        assert share >= 0.85, f"{k} identified on {share:.0%} of seeds"
+    assert median < 0.01 and worst < 0.15, f"mu: {errs['mu']}"
+    assert np.mean(np.abs(errs["mu"]) < 0.04) >= 0.85, f"mu: {errs['mu']}"
+    for k, median_tol, p75_tol in (("g1", 0.13, 0.35), ("tau1", 0.13, 0.3)):
+        share, median, _ = _summary(errs[k])
+        assert share >= 0.9, f"{k} identified on {share:.0%} of seeds"
         assert median < median_tol, f"{k}: {errs[k]}"
-        assert worst < max_tol, f"{k}: {errs[k]}"
+        assert _p75(errs[k]) < p75_tol, f"{k}: {errs[k]}"
     # K1, K2, B are compared with a nominal stiffness (no contact mechanics, no Poisson
     # confinement): a common factor is allowed; the scatter about it is the shapes' contact.
     for k in ("K1", "K2", "B"):
         ratio = 1.0 + errs[k][np.isfinite(errs[k])]
-        assert np.std(np.log(ratio)) < 0.5, f"{k} ratios {ratio}"
+        assert np.std(np.log(ratio)) < 0.6, f"{k} ratios {ratio}"
 
 
 if __name__ == "__main__":  # prints the figures quoted in the report
     import sys
 
-    for name, e in agreement(probe_hold=float(sys.argv[1]) if len(sys.argv) > 1 else 0.3
-                             ).items():
+    kw = {"probe_hold": float(sys.argv[1])} if len(sys.argv) > 1 else {}
+    for name, e in agreement(**kw).items():
         ok = np.isfinite(e)
         med = np.median(np.abs(e[ok])) if ok.any() else np.nan
         print(f"{name:5s} identified {ok.mean():4.0%}  median |model/oracle - 1| = {med:.3f}  "
