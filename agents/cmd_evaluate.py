@@ -20,11 +20,20 @@ def _positive_int(text: str) -> int:
     return int(value)
 
 
+def _out_file(text: str) -> Path:
+    p = writable(text)
+    if p.is_dir():
+        raise argparse.ArgumentTypeError(f"is a directory, not a file: {text!r}")
+    return p
+
+
 def _out_dir(text: str) -> Path:
     p = Path(text)
     probe = p
     while not probe.exists() and probe.parent != probe:
         probe = probe.parent
+    if p.exists() and not p.is_dir():
+        raise argparse.ArgumentTypeError(f"not a directory: {text!r}")
     if not probe.is_dir() or not os.access(probe, os.W_OK):
         raise argparse.ArgumentTypeError(f"cannot write to directory {text!r}")
     return p
@@ -154,11 +163,11 @@ def register(sub: Any) -> None:
     p.add_argument("--search-episodes", type=_positive_int, default=None, metavar="N",
                    help="run 'search' (~20 simulations per scene) on the first N scenes "
                    "only; regret is then paired on those (default: all)")
-    p.add_argument("--json", type=writable, default=None, metavar="FILE",
+    p.add_argument("--json", type=_out_file, default=None, metavar="FILE",
                    help="write the summary (and settings, machine) as JSON")
     p.add_argument("--json-episodes", action="store_true",
                    help="also put every episode's record in the JSON")
-    p.add_argument("--csv", type=writable, default=None, metavar="FILE",
+    p.add_argument("--csv", type=_out_file, default=None, metavar="FILE",
                    help="write one row per (agent, episode)")
     p.add_argument("--plots", type=_out_dir, default=None, metavar="DIR",
                    help="write reward.png, fetch_rate.png, theta_vs_stiffness.png")

@@ -71,6 +71,26 @@ class Task:
 
 _ENVS: dict[tuple[str, str], Any] = {}
 _AGENTS: dict[tuple[str, str], Agent] = {}
+_WARM: list[bool] = []
+
+
+def warm_up() -> None:
+    """Compile one scene of every piece shape, once per process, before any episode.
+
+    MuJoCo's compiler leaves last-bit differences in a flex's mass and stiffness that depend
+    on which scene of that shape was compiled first in the process (found while checking
+    ``--workers``); the contacts amplify them to ~1e-4 in LE.  Compiling a fixed scene of
+    each shape first makes every later episode independent of the process's history, so
+    any number of workers gives the same numbers.
+    """
+    if _WARM:
+        return
+    from fetch_env.layouts import SHAPES, Piece
+    from fetch_env.scene import build_scene
+
+    for shape in SHAPES:
+        build_scene((Piece(shape, 0.015),))  # type: ignore[arg-type]
+    _WARM.append(True)
 
 
 def _env(env_id: str, env_kwargs: dict[str, Any]) -> Any:
@@ -86,6 +106,7 @@ def _env(env_id: str, env_kwargs: dict[str, Any]) -> Any:
 
 def run_episode(task: Task) -> dict[str, Any]:
     """One fetch of one agent on the scene of ``seed``; a flat record."""
+    warm_up()
     env = _env(task.env_id, task.env_kwargs)
     key = (task.agent, task.env_id)
     if key not in _AGENTS:

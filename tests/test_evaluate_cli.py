@@ -1,0 +1,147 @@
+"""``food-fetch evaluate`` as a user meets it: help, one-line errors, the JSON contract,
+identical numbers with several workers, partial results on Ctrl-C."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from agents import evaluate as ev
+from agents.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_help_is_clear(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["evaluate", "--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    for opt in ("--agent", "--env", "--episodes", "--seed", "--workers", "--json", "--csv",
+                "--video", "--plots", "--search-episodes", "95 %", "regret"):
+        assert opt in out
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["--env", "FoodFetch-Nope-v0"], "unknown environment id 'FoodFetch-Nope-v0'"),
+    (["--agent", "greedy"], "unknown agent 'greedy'"),
+    (["--agent", "missing/model.zip"], "model file not found: 'missing/model.zip'"),
+    (["--episodes", "ten"], "--episodes: not a number: 'ten'"),
+    (["--episodes", "0"], "--episodes: must be >= 1"),
+    (["--workers", "nan"], "--workers"),
+    (["--seed", "1.5"], "--seed: not a number"),
+    (["--json", "/nonexistent-dir/out.json"], "--json: directory does not exist"),
+    (["--csv", "/"], "--csv: is a directory, not a file: '/'"),
+    (["--plots", "/proc/version"], "--plots: not a directory"),
+])
+def test_mistakes_are_one_line_and_exit_2(argv: list[str], fragment: str,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    code, _out, err = _run(["evaluate", *argv], capsys)
+    assert code == 2
+    assert fragment in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_json_contract_and_table(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    js, csv = tmp_path / "e.json", tmp_path / "e.csv"
+    code, out, err = _run(["evaluate", "--agent", "study", "--agent", "model-based",
+                           "--episodes", "2", "--seed", "3", "--json", str(js), "--csv",
+                           str(csv), "--quiet"], capsys)
+    assert code == 0, err
+    d = json.loads(js.read_text())
+    assert d["env"] == "FoodFetch-Block-v0" and d["episodes"] == 2 and d["seed"] == 3
+    assert set(d["agents"]) == {"study", "model-based"}
+    for s in d["agents"].values():
+        for key in ("reward_mean", "reward_ci95", "fetch_rate_mean", "success_rate",
+                    "max_log_strain_mean", "time_per_fetch_mean"):
+            assert key in s
+        assert len(s["reward_ci95"]) == 2 and s["reward_ci95"][0] <= s["reward_mean"]
+        assert "regret_mean" not in s  # search did not run
+    assert not d["interrupted"]
+    assert len(csv.read_text().strip().splitlines()) == 1 + 4
+    assert "model-based" in out and "reward" in out
+
+
+def test_interrupted_evaluation_still_writes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    calls = {"n": 0}
+    real = ev.run_episode
+
+    def flaky(task: ev.Task) -> dict:
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+        return real(task)
+
+    monkeypatch.setattr(ev, "run_episode", flaky)
+    js = tmp_path / "partial.json"
+    code, out, _ = _run(["evaluate", "--agent", "study", "--episodes", "5", "--json", str(js),
+                         "--quiet"], capsys)
+    assert code == 130
+    d = json.loads(js.read_text())
+    assert d["interrupted"] and d["episodes_finished"] == 2
+    assert d["agents"]["study"]["episodes"] == 2
+    assert "INTERRUPTED" in out
+
+
+def test_two_workers_give_the_same_numbers(tmp_path: Path) -> None:
+    tasks = [ev.Task(a, "FoodFetch-Block-v0", i, 40 + i)
+             for i in range(2) for a in ("random", "model-based")]
+    one = ev.run_tasks(tasks, workers=1)
+    two = ev.run_tasks(tasks, workers=2)
+    strip = [{k: v for k, v in r.items() if k != "wall_s"} for r in one]
+    assert strip == [{k: v for k, v in r.items() if k != "wall_s"} for r in two]
+
+
+@pytest.mark.slow
+def test_two_workers_are_faster(tmp_path: Path) -> None:
+    tasks = [ev.Task("study", "FoodFetch-Block-v0", i, 60 + i) for i in range(16)]
+    t = time.perf_counter()
+    ev.run_tasks(tasks, workers=1)
+    t1 = time.perf_counter() - t
+    t = time.perf_counter()
+    ev.run_tasks(tasks, workers=2)
+    t2 = time.perf_counter() - t
+    assert t2 < 0.85 * t1, (t1, t2)
+
+
+@pytest.mark.slow
+def test_ctrl_c_on_the_real_command_writes_partial_json(tmp_path: Path) -> None:
+    js = tmp_path / "p.json"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "agents.cli", "evaluate", "--agent", "study", "--episodes",
+         "200", "--json", str(js), "--quiet"], cwd=ROOT, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True, env={**os.environ})
+    time.sleep(15)
+    proc.send_signal(signal.SIGINT)
+    _out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    d = json.loads(js.read_text())
+    assert d["interrupted"] and 0 < d["episodes_finished"] < 200
+
+
+@pytest.mark.slow
+def test_plots_and_search_regret(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    js = tmp_path / "e.json"
+    code, _out, err = _run(["evaluate", "--agent", "study", "--agent", "search", "--episodes",
+                           "2", "--json", str(js), "--plots", str(tmp_path / "p"), "--quiet"],
+                          capsys)
+    assert code == 0, err
+    d = json.loads(js.read_text())
+    assert d["agents"]["study"]["regret_mean"] >= -1e-9
+    assert {p.name for p in (tmp_path / "p").iterdir()} == {
+        "reward.png", "fetch_rate.png", "theta_vs_stiffness.png"}
