@@ -128,12 +128,18 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.plots is not None:
         for p in write_plots(args.plots, summary, records, args.env):
             print(f"plot              {p}")
-    if args.video is not None:
-        for p in record_videos(args.video, agents, args.env, args.seed, {}):
-            print(f"video             {p}")
     for path in (args.json, args.csv):
         if path is not None:
             print(f"wrote             {path}")
+    if args.video is not None:
+        try:
+            videos = record_videos(args.video, agents, args.env, args.seed, {})
+        except Exception as exc:  # no OpenGL context (headless without MUJOCO_GL=egl)
+            msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise UsageError(f"food-fetch evaluate: --video: cannot render ({msg}); on a "
+                             "headless machine set MUJOCO_GL=egl (or osmesa)") from None
+        for p in videos:
+            print(f"video             {p}")
     return 0
 
 
