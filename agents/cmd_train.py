@@ -82,8 +82,8 @@ def register(sub: Any) -> None:
                    "YAML; with --resume, the total including the checkpoint's steps")
     p.add_argument("--seed", type=finite(int), default=0, metavar="S",
                    help="seed of the policy and the training scenes (default: 0)")
-    p.add_argument("--log-dir", type=_log_dir, default=Path("runs/train"), metavar="DIR",
-                   help="output directory, created if missing (default: runs/train)")
+    p.add_argument("--log-dir", type=_log_dir, default=Path("out/train"), metavar="DIR",
+                   help="output directory, created if missing (default: out/train)")
     p.add_argument("--resume", default=None, metavar="CHECKPOINT",
                    help="continue from a saved model or checkpoint .zip (SAC also reloads the "
                    "replay buffer saved next to it)")
