@@ -183,3 +183,15 @@ def test_observation_names_the_agents_rely_on() -> None:
     for name in ("K1", "K2", "B", "mu", "visco_valid", "friction_valid", "max_height",
                  "span_along", "mean_size", "n_pieces", "total_mass"):
         assert name in OBS_NAMES
+
+
+def test_cli_and_agents_do_not_import_sb3_or_torch() -> None:
+    import subprocess
+    import sys
+
+    code = ("import sys, agents.cli as c; c.build_parser(); import agents.evaluate, "
+            "agents.model_based, agents.search, agents.sb3_agent, agents.train; "
+            "print('torch' in sys.modules or 'stable_baselines3' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == "False"
