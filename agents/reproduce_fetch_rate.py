@@ -76,6 +76,30 @@ STUDY: dict[str, str] = {
 }
 
 
+def columns(pieces: tuple[Any, ...]) -> list[dict[str, Any]]:
+    """Pieces grouped into columns along the clamp direction (y), widest span first.
+
+    Two pieces share a column when their x-intervals overlap by more than half the narrower
+    one.  ``span_y`` is the column's extent along the clamp (outer surface to outer surface,
+    gaps included): flat rigid blades closing along y touch the widest column first.
+    """
+    cols: list[list[int]] = []
+    for i, p in enumerate(pieces):
+        for col in cols:
+            q = pieces[col[0]]
+            overlap = min(p.x + p.extents[0] / 2, q.x + q.extents[0] / 2) - max(
+                p.x - p.extents[0] / 2, q.x - q.extents[0] / 2)
+            if overlap > 0.5 * min(p.extents[0], q.extents[0]):
+                col.append(i)
+                break
+        else:
+            cols.append([i])
+    out = [{"pieces": c, "span_y": float(max(pieces[i].y + pieces[i].extents[1] / 2 for i in c)
+                                         - min(pieces[i].y - pieces[i].extents[1] / 2
+                                               for i in c))} for c in cols]
+    return sorted(out, key=lambda c: -c["span_y"])
+
+
 def run_case(case: Case) -> dict[str, Any]:
     """One fetch of ``case``; a diverged simulation is recorded, not raised."""
     from fetch_env.controller import FetchAction, FetchSimulator
@@ -97,7 +121,8 @@ def run_case(case: Case) -> dict[str, Any]:
         fetch_rate=r.fetch_rate, fetch_rate_mass=r.fetch_rate_mass,
         le_clamp=max(p["max_log_strain_clamp"] for p in r.pieces),
         le_lift=max(p["max_log_strain_lift"] for p in r.pieces),
-        residual_plastic=max(p["residual_plastic_strain"] for p in r.pieces),
+        residual_plastic=max((p["residual_plastic_strain"] for p in r.pieces
+                              if p["residual_plastic_strain"] is not None), default=None),
         fetched=[p["fetched"] for p in r.pieces], hard=hard,
         stalled_at=r.extra.get("stalled_at"), wall_time=r.wall_time,
         fetch_rate_hard=(float(np.mean([f for f, h in zip(
@@ -106,6 +131,18 @@ def run_case(case: Case) -> dict[str, Any]:
         fetch_rate_soft=(float(np.mean([f for f, h in zip(
             [p["fetched"] for p in r.pieces], hard, strict=True) if not h]))
             if not all(hard) else None))
+    if case.group.startswith("diced"):
+        # Which columns (along the clamp) the fetched pieces come from: with flat rigid
+        # blades only the widest column is squeezed (the others are not touched, or barely).
+        cols = columns(pieces)
+        fetched = row["fetched"]
+        for c in cols:
+            c["n_fetched"] = int(sum(fetched[i] for i in c["pieces"]))
+        widest = {i for c in cols if c["span_y"] >= cols[0]["span_y"] - 1e-4
+                  for i in c["pieces"]}
+        row["columns"] = cols
+        row["fetched_only_widest_column"] = bool(
+            any(fetched) and all(i in widest for i, f in enumerate(fetched) if f))
     return row
 
 
@@ -176,6 +213,10 @@ def table(rows: list[dict[str, Any]]) -> str:
             note.append(f"hard {r['fetch_rate_hard']:.2f}, soft {r['fetch_rate_soft']:.2f}")
         if r.get("stalled_at") is not None:
             note.append(f"motor stalled at {r['stalled_at']:.4f} rad")
+        if r.get("columns"):
+            c = r["columns"]
+            note.append("columns (span mm: fetched/n) " + ", ".join(
+                f"{x['span_y'] * 1e3:.1f}: {x['n_fetched']}/{len(x['pieces'])}" for x in c))
         lines.append(f"| {r['group']} | {r['label']} | {r['theta_d']:g} | "
                      f"{r['fetch_rate']:.2f} | {r['le_clamp']:.3f} | {r['le_lift']:.3f} | "
                      f"{'; '.join(note)} |")
