@@ -207,6 +207,12 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         flex.solref = [0.01, 1.0]
         flex.solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
         flex.rgba = _colour(mat.young)
+    # MuJoCo's process-wide asset cache makes the compiled flex stiffness and node masses
+    # depend, in their last bits, on what was compiled before in the process (measured: 396
+    # values differ for a sphere compiled cold vs after three other scenes), which breaks
+    # bit-identical runs across processes.  Without the cache the compile is a function of
+    # its input only; our scenes have no large meshes for it to save time on.
+    mujoco.mj_setCacheCapacity(mujoco.mj_getCache(), 0)
     with warnings.catch_warnings():
         # MuJoCo warns that a trilinear flex "has no equality constraints or passive forces"
         # although its elasticity is active (checked in tests/test_viscoelastic.py).
