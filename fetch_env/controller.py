@@ -44,6 +44,7 @@ THETA_D_RANGE = (0.0, 0.3)  # [rad]
 OMEGA_RANGE = (1e-3, 2.0)  # [rad/s]
 LIFT_SPEED_RANGE = (1e-4, 0.1)  # [m/s]
 STALL_MOMENT = 2.0  # [N m] the clamping motor stalls above this load (~50 N at L = 38 mm)
+CLOSED_MARGIN = 0.01  # [rad] the end stop, before the faces meet at the tips
 STALL_TIME = 0.02  # [s] the load is averaged over this long before the motor stalls
 RELAXATION_GAP = 1e-4  # [m] blade-food clearance at the start of the relaxation probe
 
@@ -309,6 +310,10 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     wall = time.perf_counter()
     r = 0
     stall_cap = np.inf  # the angle the motor stalled at: the command never goes past it
+    # The controller's end stop: the blades never close past CLOSED_MARGIN before their faces
+    # meet at the tips (a rigid joint limit there pinched small hard pieces with unbounded
+    # force; this way the 2 N m motor is the only thing squeezing).
+    closed_cap = q_open + scene.pose.theta_closed - CLOSED_MARGIN
     load = 0.0  # the motor's load moment, low-passed over STALL_TIME (contact impulses pass)
     smooth = 1.0 - math.exp(-dt / STALL_TIME)
     for i in range(n):
@@ -318,7 +323,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
             # A real clamping motor cannot push harder than its stall moment: the blades
             # stop where they are (stiff pieces are held, not crushed).
             stall_cap = 0.5 * (d.qpos[hinge_q[0]] + d.qpos[hinge_q[1]])
-        d.ctrl[servos[0]] = d.ctrl[servos[1]] = min(ctrl_hinge[i], stall_cap)
+        d.ctrl[servos[0]] = d.ctrl[servos[1]] = min(ctrl_hinge[i], stall_cap, closed_cap)
         d.ctrl[lift_act] = ctrl_lift[i]
         prony.apply(d)
         mujoco.mj_step(m, d)

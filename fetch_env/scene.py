@@ -26,12 +26,12 @@ BASE_XML = "fetch_base.xml"
 # touches a blade at one or two jumping points and chatters (moment noise ~80 % of the mean
 # in a firm clamp); 3 x 3 x 3 (48 tetrahedra) spreads it over a face (~1.5 %) at ~30 % cost.
 MESH_COUNT = {"cube": 3, "ellipsoid": 4, "sphere": 4}
-# Largest E dt^2 / (rho s^2) (s: the piece's thinnest extent; the flex's stiffness-to-mass
-# ratio per step) simulated as is.  Above ~2e4 MuJoCo's effective-metric (M + dt^2 K) solve
-# warns of ill-conditioned flex stiffness or diverges (a 7 mm, 200 MPa dice is 1e5), so such
-# pieces get the capped modulus (reported as ``young_simulated``): still > 40x stiffer than the
-# soft foods, and held by a motor that stalls at 2 N m, they deform < 1 % in any clamp.
-CONDITIONING_LIMIT = 1e4
+# Largest E dt^2 / (rho s^2) (s: the piece's thinnest extent) simulated at the material's
+# modulus; stiffer pieces would get the capped one (reported as ``young_simulated``).  Set so
+# high that it never binds: the ill-conditioning warnings and divergences first blamed on
+# small hard pieces came from the solver's iteration cap and saturated servos (both fixed);
+# with a cap the runs were no more stable (measured on 6-8 mm, 200 MPa pieces).
+CONDITIONING_LIMIT = float("inf")
 BLADE_HALF_THICKNESS = 0.002  # [m] thick enough that no food vertex can reach the far side
 
 
@@ -175,12 +175,6 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         blade = spec.geom(f"blade_{side}")
         blade.size = [geometry.blade_width / 2, BLADE_HALF_THICKNESS, geometry.blade_length / 2]
         blade.pos = [0.0, sign * (offset + BLADE_HALF_THICKNESS), -geometry.blade_length / 2]
-    for side in ("left", "right"):
-        # The mechanical stop: the half-spoons cannot close past the angle at which their
-        # faces meet at the tips (a larger commanded theta_d just presses them together).
-        hinge = spec.joint(f"hinge_{side}")
-        hinge.limited = mujoco.mjtLimited.mjLIMITED_TRUE
-        hinge.range = [-0.2, pose.theta_closed]
     plate = spec.geom("plate")
     plate.friction = [pieces[0].material.plate_mu, 0.005, 0.0001]
 
