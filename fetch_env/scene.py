@@ -26,12 +26,13 @@ BASE_XML = "fetch_base.xml"
 # touches a blade at one or two jumping points and chatters (moment noise ~80 % of the mean
 # in a firm clamp); 3 x 3 x 3 (48 tetrahedra) spreads it over a face (~1.5 %) at ~30 % cost.
 MESH_COUNT = {"cube": 3, "ellipsoid": 4, "sphere": 4}
-# Largest E dt^2 / (rho s^2) (s: the piece's thinnest extent) simulated at the material's
-# modulus; stiffer pieces would get the capped one (reported as ``young_simulated``).  Set so
-# high that it never binds: the ill-conditioning warnings and divergences first blamed on
-# small hard pieces came from the solver's iteration cap and saturated servos (both fixed);
-# with a cap the runs were no more stable (measured on 6-8 mm, 200 MPa pieces).
-CONDITIONING_LIMIT = float("inf")
+# Largest E dt^2 / (rho s^2) (s: the piece's thinnest extent; the flex's stiffness-to-mass
+# ratio per step) simulated at the material's modulus.  Above it MuJoCo's effective-metric
+# (M + dt^2 K) step is ill-conditioned: small 200 MPa dice (1e5) blew up in diced mixes
+# (LE 9, divergence) without the cap and ran cleanly with it.  Such pieces get the capped
+# modulus instead (reported per piece as ``young_simulated``): still > 40x stiffer than the
+# soft foods and held by a motor that stalls at 2 N m, they deform < 1 % in any clamp.
+CONDITIONING_LIMIT = 1e4
 BLADE_HALF_THICKNESS = 0.002  # [m] thick enough that no food vertex can reach the far side
 
 
