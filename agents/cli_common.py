@@ -53,112 +53,38 @@ def add_food_options(p: argparse.ArgumentParser) -> None:
 
     m, a = Material(), FetchAction()
     g = p.add_argument_group("food")
-    g.add_argument(
-        "--shape",
-        choices=("cube", "ellipsoid", "sphere"),
-        default="cube",
-        help="piece shape (default: cube)",
+    g.add_argument("--shape", choices=("cube", "ellipsoid", "sphere"), default="cube",
+                   help="piece shape (default: cube)")
+    # (option, default, metavar, help): every number parsed by `finite`, defaults from the
+    # Material and FetchAction dataclasses so the help can never disagree with the code.
+    food: tuple[tuple[str, float, str, str], ...] = (
+        ("--size", 0.015, "M", "piece size [m], 0.006 to 0.025"),
+        ("--young", m.young, "PA", "instantaneous Young's modulus E_0 [Pa]"),
+        ("--poisson", m.poisson, "NU", "Poisson's ratio in [0, 0.5)"),
+        ("--density", m.density, "KG_M3", "density [kg/m^3]"),
+        ("--g1", m.g1, "G", "Prony g_1 in [0, 1)"),
+        ("--tau1", m.tau1, "S", "Prony tau_1 [s]"),
+        ("--mu", m.mu, "MU", "half-spoon/food friction coefficient"),
+        ("--plate-mu", m.plate_mu, "MU", "plate/food friction coefficient"),
+        ("--yield-strain", 0.0, "EPS", "plastic yield strain; 0 = no plasticity"),
     )
-    g.add_argument(
-        "--size",
-        type=finite(),
-        default=0.015,
-        metavar="M",
-        help="piece size [m], 0.006 to 0.025 (default: 0.015)",
-    )
-    g.add_argument(
-        "--young",
-        type=finite(),
-        default=m.young,
-        metavar="PA",
-        help=f"instantaneous Young's modulus E_0 [Pa] (default: {m.young:g})",
-    )
-    g.add_argument(
-        "--poisson",
-        type=finite(),
-        default=m.poisson,
-        metavar="NU",
-        help=f"Poisson's ratio in [0, 0.5) (default: {m.poisson})",
-    )
-    g.add_argument(
-        "--density",
-        type=finite(),
-        default=m.density,
-        metavar="KG_M3",
-        help=f"density [kg/m^3] (default: {m.density:g})",
-    )
-    g.add_argument(
-        "--g1",
-        type=finite(),
-        default=m.g1,
-        metavar="G",
-        help=f"Prony g_1 in [0, 1) (default: {m.g1})",
-    )
-    g.add_argument(
-        "--tau1",
-        type=finite(),
-        default=m.tau1,
-        metavar="S",
-        help=f"Prony tau_1 [s] (default: {m.tau1})",
-    )
-    g.add_argument(
-        "--mu",
-        type=finite(),
-        default=m.mu,
-        metavar="MU",
-        help=f"half-spoon/food friction coefficient (default: {m.mu})",
-    )
-    g.add_argument(
-        "--plate-mu",
-        type=finite(),
-        default=m.plate_mu,
-        metavar="MU",
-        help=f"plate/food friction coefficient (default: {m.plate_mu})",
-    )
-    g.add_argument(
-        "--yield-strain",
-        type=finite(),
-        default=0.0,
-        metavar="EPS",
-        help="plastic yield strain; 0 = no plasticity (default: 0)",
-    )
+    for option, default, metavar, text in food:
+        g.add_argument(option, type=finite(), default=default, metavar=metavar,
+                       help=f"{text} (default: {default:g})")
     c = p.add_argument_group("clamp")
-    c.add_argument(
-        "--theta-d",
-        type=finite(),
-        default=None,
-        metavar="RAD",
-        help="preset angular displacement from the open pose [rad] (default: 0.045; "
-        "0.0244 for the relaxation probe)",
+    clamp: tuple[tuple[str, float | None, str, str], ...] = (
+        ("--theta-d", None, "RAD", "preset angular displacement from the open pose [rad] "
+         "(default: 0.045; 0.0244 for the relaxation probe)"),
+        ("--omega", None, "RAD_S", "clamping angular velocity [rad/s] (default: 0.1; 0.02 "
+         "for the relaxation probe)"),
+        ("--lift-speed", a.lift_speed, "M_S", f"lifting speed [m/s] (default: {a.lift_speed})"),
+        ("--hold", None, "S", "hold at theta_d [s] (default: 1 for fetch, 15 for relaxation, "
+         "0.5 for slip)"),
     )
-    c.add_argument(
-        "--omega",
-        type=finite(),
-        default=None,
-        metavar="RAD_S",
-        help="clamping angular velocity [rad/s] (default: 0.1; 0.02 for the relaxation probe)",
-    )
-    c.add_argument(
-        "--lift-speed",
-        type=finite(),
-        default=a.lift_speed,
-        metavar="M_S",
-        help=f"lifting speed [m/s] (default: {a.lift_speed})",
-    )
-    c.add_argument(
-        "--hold",
-        type=finite(),
-        default=None,
-        metavar="S",
-        help="hold at theta_d [s] (default: 1 for fetch, 15 for relaxation, 0.5 for slip)",
-    )
-    p.add_argument(
-        "--seed",
-        type=finite(int),
-        default=0,
-        metavar="N",
-        help="seed for every random choice (default: 0)",
-    )
+    for option, default, metavar, text in clamp:
+        c.add_argument(option, type=finite(), default=default, metavar=metavar, help=text)
+    p.add_argument("--seed", type=finite(int), default=0, metavar="N",
+                   help="seed for every random choice (default: 0)")
 
 
 def write_json(path: Path, payload: dict[str, Any]) -> None:
