@@ -20,6 +20,7 @@ import mujoco
 import numpy as np
 
 from fetch_env.controller import FetchAction, FetchSimulator, make_profile, servo_commands
+from fetch_env.errors import SimulationDivergedError
 from fetch_env.layouts import diced_mix, single_block
 from fetch_env.scene import initial_state
 from fetch_env.viscoelastic import PronyForces
@@ -78,5 +79,14 @@ if __name__ == "__main__":
     print(f"machine: {platform.machine()} {platform.processor()}, {os.cpu_count()} cores, "
           f"python {platform.python_version()}, mujoco {mujoco.__version__}")
     bench("single 15 mm soft cube", single_block(), FetchAction())
-    bench("9-piece diced mix", diced_mix(np.random.default_rng(1), n_pieces=9),
-          FetchAction(theta_d=0.085))
+    # Diced mixes with 0.0123 MPa dice crushed beside stiff ones diverge in ~1 of 4 fetches
+    # (see README, Status); time the first seed whose fetch runs through, and say which.
+    for seed in range(1, 20):
+        pieces = diced_mix(np.random.default_rng(seed), n_pieces=9)
+        try:
+            FetchSimulator(pieces).run("fetch", FetchAction(theta_d=0.085))
+        except SimulationDivergedError:
+            print(f"(diced mix seed {seed} diverged; trying the next)")
+            continue
+        bench(f"9-piece diced mix, seed {seed}", pieces, FetchAction(theta_d=0.085))
+        break
