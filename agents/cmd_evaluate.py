@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import platform
 import sys
@@ -37,6 +38,17 @@ def _out_dir(text: str) -> Path:
     if not probe.is_dir() or not os.access(probe, os.W_OK):
         raise argparse.ArgumentTypeError(f"cannot write to directory {text!r}")
     return p
+
+
+def _json_safe(x: Any) -> Any:
+    """NaN/inf -> None, so the file is strict JSON (a diverged episode has no LE)."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_json_safe(v) for v in x]
+    return x
 
 
 def _payload(args: argparse.Namespace, agents: list[str], records: list[dict[str, Any]],
@@ -109,7 +121,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     summary = summarize(records, agents)
     payload = _payload(args, agents, records, summary, interrupted, wall, describe)
     if args.json is not None:
-        write_json(args.json, payload)
+        write_json(args.json, _json_safe(payload))
     if args.csv is not None:
         write_csv(args.csv, records)
     print(f"{args.env}: {args.episodes} episodes from seed {args.seed}"
