@@ -313,7 +313,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     # The controller's end stop: the blades never close past CLOSED_MARGIN before their faces
     # meet at the tips (a rigid joint limit there pinched small hard pieces with unbounded
     # force; this way the 2 N m motor is the only thing squeezing).
-    closed_cap = q_open + scene.pose.theta_closed - CLOSED_MARGIN
+    ctrl_hinge = np.minimum(ctrl_hinge, q_open + scene.pose.theta_closed - CLOSED_MARGIN)
     load = 0.0  # the motor's load moment, low-passed over STALL_TIME (contact impulses pass)
     smooth = 1.0 - math.exp(-dt / STALL_TIME)
     for i in range(n):
@@ -323,7 +323,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
             # A real clamping motor cannot push harder than its stall moment: the blades
             # stop where they are (stiff pieces are held, not crushed).
             stall_cap = 0.5 * (d.qpos[hinge_q[0]] + d.qpos[hinge_q[1]])
-        d.ctrl[servos[0]] = d.ctrl[servos[1]] = min(ctrl_hinge[i], stall_cap, closed_cap)
+        d.ctrl[servos[0]] = d.ctrl[servos[1]] = min(ctrl_hinge[i], stall_cap)
         d.ctrl[lift_act] = ctrl_lift[i]
         prony.apply(d)
         mujoco.mj_step(m, d)
