@@ -25,12 +25,7 @@ import numpy as np
 
 from fetch_env.errors import InvalidParameterError, SimulationDivergedError, require, require_finite
 from fetch_env.layouts import Piece
-from fetch_env.metrics import (
-    StrainMeter,
-    blade_overlap,
-    piece_positions,
-    residual_plastic_strain,
-)
+from fetch_env.metrics import BladeOverlap, PiecePositions, StrainMeter, residual_plastic_strain
 from fetch_env.scene import Geometry, Scene, build_scene, initial_state, simulated_young
 from fetch_env.sensors import ContactSensors
 from fetch_env.viscoelastic import PronyForces
@@ -307,6 +302,12 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
         return SimulationDivergedError(f"{why} at t={d.time:.4f} s in {experiment}",
                                        scene.describe(), action.to_dict())
 
+    overlap = BladeOverlap(scene)
+    positions = PiecePositions(scene)
+    # Views into MjData, fetched once: attribute access costs more than the arithmetic here.
+    qpos, qfrc_constraint, ctrl = d.qpos, d.qfrc_constraint, d.ctrl
+    bad_qacc_count = d.warning[bad_qacc]
+    hinge_dofs = np.array(hinge_v)
     wall = time.perf_counter()
     r = 0
     stall_cap = np.inf  # the angle the motor stalled at: the command never goes past it
@@ -316,34 +317,33 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     ctrl_hinge = np.minimum(ctrl_hinge, q_open + scene.pose.theta_closed - CLOSED_MARGIN)
     load = 0.0  # the motor's load moment, low-passed over STALL_TIME (contact impulses pass)
     smooth = 1.0 - math.exp(-dt / STALL_TIME)
+    left, right = servos
     for i in range(n):
-        load += smooth * (max(abs(d.qfrc_constraint[hinge_v[0]]),
-                              abs(d.qfrc_constraint[hinge_v[1]])) - load)
+        load += smooth * (float(np.abs(qfrc_constraint[hinge_dofs]).max()) - load)
         if stall_cap == np.inf and load > STALL_MOMENT:
             # A real clamping motor cannot push harder than its stall moment: the blades
             # stop where they are (stiff pieces are held, not crushed).
-            stall_cap = 0.5 * (d.qpos[hinge_q[0]] + d.qpos[hinge_q[1]])
-        d.ctrl[servos[0]] = d.ctrl[servos[1]] = min(ctrl_hinge[i], stall_cap)
-        d.ctrl[lift_act] = ctrl_lift[i]
+            stall_cap = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]])
+        ctrl[left] = ctrl[right] = min(ctrl_hinge[i], stall_cap)
+        ctrl[lift_act] = ctrl_lift[i]
         prony.apply(d)
         mujoco.mj_step(m, d)
-        if d.warning[bad_qacc].number:  # autoreset is off: the state is still the bad one
+        if bad_qacc_count.number:  # autoreset is off: the state is still the bad one
             raise fail("bad or non-finite acceleration")
         if i % every == 0:
             rec["t"][r] = d.time
             rec["phase"][r] = profile.phase[i]
-            rec["theta"][r] = 0.5 * (d.qpos[hinge_q[0]] + d.qpos[hinge_q[1]]) - q_open
+            rec["theta"][r] = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]]) - q_open
             rec["theta_cmd"][r] = profile.theta[min(i + 1, n - 1)]
-            rec["lift"][r] = d.qpos[lift_q]
+            rec["lift"][r] = qpos[lift_q]
             reading = sensors.read(d)
-            for k, side in enumerate(("left", "right")):
-                rec[f"moment_{side}"][r] = reading["moment"][k]
-                rec[f"normal_{side}"][r] = reading["normal"][k]
-                rec[f"tangential_{side}"][r] = reading["tangential"][k]
+            rec["moment_left"][r], rec["moment_right"][r] = reading["moment"]
+            rec["normal_left"][r], rec["normal_right"][r] = reading["normal"]
+            rec["tangential_left"][r], rec["tangential_right"][r] = reading["tangential"]
             rec["force"][r] = reading["force"]
-            rec["blade_overlap"][r] = blade_overlap(scene, d)
-            low_now, _ = piece_positions(scene, d)
-            lowest_z = np.minimum(lowest_z, low_now)
+            rec["blade_overlap"][r] = overlap(d)
+            low_now, _ = positions(d)
+            np.minimum(lowest_z, low_now, out=lowest_z)
             le_trace[r] = strain.piece_strain(d)
             if observer is not None:
                 observer(d)
@@ -354,7 +354,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     warned = {mujoco.mjtWarning(k).name: int(w.number) for k, w in enumerate(d.warning)
               if w.number}
 
-    low, centre = piece_positions(scene, d)
+    low, centre = positions(d)
     masses = np.array([p.mass for p in scene.pieces])
     half_gap = _blade_half_gap(scene, d)
     stage_y = scene.pose.stage_xy[1]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
+import scipy.sparse
 
 from fetch_env.scene import Scene
 
@@ -13,7 +14,9 @@ class StrainMeter:
 
     For each element the deformation gradient is ``F = D_s D_m^{-1}`` (current and rest edge
     matrices); LE is the largest ``|log lambda_i|`` over its principal stretches (the singular
-    values of F), as ABAQUS reports LE.
+    values of F), as ABAQUS reports LE.  ``F`` is linear in the vertex positions, so every
+    element's ``F`` comes from one sparse matrix-vector product (``scipy.sparse``): this runs
+    at every recorded sample.
     """
 
     def __init__(self, scene: Scene, rest: mujoco.MjData) -> None:
@@ -32,6 +35,20 @@ class StrainMeter:
         X = rest.flexvert_xpos[self.elems]  # (E, 4, 3)
         Dm = (X[:, 1:] - X[:, :1]).transpose(0, 2, 1)
         self.Dm_inv = np.linalg.inv(Dm)
+        # F[e, i, j] = sum_k (x[v_k+1, i] - x[v_0, i]) Dm_inv[e, k, j]: a (9E, 3V) matrix B
+        # with F.ravel() = B @ x.ravel().
+        n_el = len(self.elems)
+        e_idx, i_idx, j_idx, k_idx = np.meshgrid(np.arange(n_el), np.arange(3), np.arange(3),
+                                                 np.arange(3), indexing="ij")
+        row = (e_idx * 9 + i_idx * 3 + j_idx).ravel()
+        coef = self.Dm_inv[e_idx, k_idx, j_idx].ravel()
+        col_tip = (self.elems[e_idx, k_idx + 1] * 3 + i_idx).ravel()
+        col_base = (self.elems[e_idx, 0] * 3 + i_idx).ravel()
+        n_cols = rest.flexvert_xpos.size
+        self.B = scipy.sparse.csr_array(
+            (np.concatenate([coef, -coef]), (np.concatenate([row, row]),
+                                             np.concatenate([col_tip, col_base]))),
+            shape=(9 * n_el, n_cols))
 
     def element_strain(self, data: mujoco.MjData) -> np.ndarray:
         """LE of every element, shape (E,).
@@ -40,11 +57,9 @@ class StrainMeter:
         LE = max |log lambda| = 0.5 max(|log c_min|, |log c_max|) (eigvalsh of the symmetric
         C is cheaper than an SVD of F).
         """
-        x = data.flexvert_xpos[self.elems]
-        Ds = (x[:, 1:] - x[:, :1]).transpose(0, 2, 1)
-        F = Ds @ self.Dm_inv
-        c = np.linalg.eigvalsh(np.einsum("eki,ekj->eij", F, F))
-        log_c = np.log(np.clip(c[:, [0, 2]], 1e-24, None))
+        F = (self.B @ data.flexvert_xpos.ravel()).reshape(-1, 3, 3)
+        c = np.linalg.eigvalsh(F.transpose(0, 2, 1) @ F)
+        log_c = np.log(np.clip(c[:, ::2], 1e-24, None))  # smallest and largest
         return 0.5 * np.abs(log_c).max(axis=1)
 
     def piece_strain(self, data: mujoco.MjData) -> np.ndarray:
@@ -52,15 +67,27 @@ class StrainMeter:
         return np.maximum.reduceat(self.element_strain(data), self.first)
 
 
+class PiecePositions:
+    """Lowest vertex height and vertex centroid of each piece, read in a few batched calls."""
+
+    def __init__(self, scene: Scene) -> None:
+        m = scene.model
+        adr = np.array([m.flex_vertadr[f] for f in scene.piece_flex])
+        num = np.array([m.flex_vertnum[f] for f in scene.piece_flex])
+        self.verts = np.concatenate([np.arange(a, a + n) for a, n in zip(adr, num, strict=True)])
+        self.first = np.concatenate([[0], np.cumsum(num)[:-1]])
+        self.num = num
+
+    def __call__(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+        v = data.flexvert_xpos[self.verts]
+        low = np.minimum.reduceat(v[:, 2], self.first)
+        centre = np.add.reduceat(v, self.first, axis=0) / self.num[:, None]
+        return low, centre
+
+
 def piece_positions(scene: Scene, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
     """Lowest vertex height and vertex centroid of each piece: (P,), (P, 3)."""
-    m = scene.model
-    low, centre = [], []
-    for f in scene.piece_flex:
-        v = data.flexvert_xpos[m.flex_vertadr[f]:m.flex_vertadr[f] + m.flex_vertnum[f]]
-        low.append(v[:, 2].min())
-        centre.append(v.mean(axis=0))
-    return np.array(low), np.array(centre)
+    return PiecePositions(scene)(data)
 
 
 def residual_plastic_strain(scene: Scene, data: mujoco.MjData) -> list[float | None]:
@@ -77,22 +104,30 @@ def residual_plastic_strain(scene: Scene, data: mujoco.MjData) -> list[float | N
     return out
 
 
-def blade_overlap(scene: Scene, data: mujoco.MjData) -> float:
+class BladeOverlap:
     """Deepest reach of any food vertex into either blade, from its inner face [m].
 
     0 when nothing touches; a few tenths of a millimetre in a firm clamp (contact
     compliance); more than the blade's thickness means a piece passed through it.
     """
-    m = scene.model
-    v = data.flexvert_xpos
-    deepest = 0.0
-    for side, inward in (("left", 1.0), ("right", -1.0)):
-        g = scene.ids[f"blade_{side}"]
-        half = m.geom_size[g]
-        local = (v - data.geom_xpos[g]) @ data.geom_xmat[g].reshape(3, 3)
-        inside = (np.abs(local[:, 0]) <= half[0]) & (np.abs(local[:, 2]) <= half[2])
-        if inside.any():
-            # depth below the inner face (local y = +half for the left blade, -half right)
-            depth = half[1] - inward * local[inside, 1]
-            deepest = max(deepest, float(depth.max()))
-    return deepest
+
+    def __init__(self, scene: Scene) -> None:
+        m = scene.model
+        self.geoms = np.array([scene.ids["blade_left"], scene.ids["blade_right"]])
+        self.half = m.geom_size[self.geoms][:, None, :]  # (2, 1, 3)
+        self.inward = np.array([1.0, -1.0])[:, None]  # inner face at local +y (left), -y
+
+    def __call__(self, data: mujoco.MjData) -> float:
+        v = data.flexvert_xpos
+        # vertices in each blade's frame, (2, V, 3)
+        local = (v[None] - data.geom_xpos[self.geoms][:, None, :]) @ data.geom_xmat[
+            self.geoms].reshape(2, 3, 3)
+        half = self.half
+        inside = (np.abs(local[..., 0]) <= half[..., 0]) & (np.abs(local[..., 2]) <= half[..., 2])
+        depth = np.where(inside, half[..., 1] - self.inward * local[..., 1], 0.0)
+        return max(0.0, float(depth.max()))
+
+
+def blade_overlap(scene: Scene, data: mujoco.MjData) -> float:
+    """:class:`BladeOverlap` of ``scene`` now (a one-off reading)."""
+    return BladeOverlap(scene)(data)

@@ -35,6 +35,16 @@ MESH_COUNT = {"cube": 3, "ellipsoid": 4, "sphere": 4}
 CONDITIONING_LIMIT = 1e4
 BLADE_HALF_THICKNESS = 0.002  # [m] thick enough that no food vertex can reach the far side
 
+# MuJoCo's process-wide asset cache makes the compiled flex stiffness and node masses depend,
+# in their last bits, on what was built before in the process (measured: 396 values differ
+# for a sphere compiled cold against after three other scenes; and a diced mix's node masses
+# differ between the first build in a process and every later one, when the cache was only
+# switched off just before compiling).  Those bits grow into different trajectories (a diced
+# fetch that diverged after another scene ran cleanly on its own).  Switched off at import,
+# before any spec exists, every compile is a function of its input only; our scenes have no
+# large meshes for it to save time on.  tests/test_fetch.py checks cold against warm builds.
+mujoco.mj_setCacheCapacity(mujoco.mj_getCache(), 0)
+
 
 @dataclass(frozen=True)
 class Geometry:
@@ -166,6 +176,7 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
                     theta_closed=math.atan2(offset, geometry.blade_length), face_offset=offset,
                     stage_xy=stage_xy, hinge_height=geometry.hinge_height)
 
+    mujoco.mj_setCacheCapacity(mujoco.mj_getCache(), 0)  # again, in case a caller re-enabled it
     xml = resources.files("fetch_env").joinpath("assets", BASE_XML).read_text()
     spec = mujoco.MjSpec.from_string(xml)
     if timestep is not None:
@@ -202,12 +213,6 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         flex.solref = [0.01, 1.0]
         flex.solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
         flex.rgba = _colour(mat.young)
-    # MuJoCo's process-wide asset cache makes the compiled flex stiffness and node masses
-    # depend, in their last bits, on what was compiled before in the process (measured: 396
-    # values differ for a sphere compiled cold vs after three other scenes), which breaks
-    # bit-identical runs across processes.  Without the cache the compile is a function of
-    # its input only; our scenes have no large meshes for it to save time on.
-    mujoco.mj_setCacheCapacity(mujoco.mj_getCache(), 0)
     with warnings.catch_warnings():
         # MuJoCo warns that a trilinear flex "has no equality constraints or passive forces"
         # although its elasticity is active (checked in tests/test_viscoelastic.py).

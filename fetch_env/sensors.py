@@ -16,63 +16,60 @@ from fetch_env.scene import Scene
 
 
 class ContactSensors:
-    """Vectorized readout of the blade contacts of a scene (elliptic cones, condim 3)."""
+    """Vectorized readout of the blade contacts of a scene (elliptic cones, condim 3).
+
+    Called at every recorded sample, so it is a few batched numpy calls: a lookup table maps
+    each contact's geoms to the blade it touches, one gather reads the contact forces, and one
+    matrix product sums them per blade.
+    """
 
     def __init__(self, scene: Scene) -> None:
         m = scene.model
         require_elliptic = m.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
         if not require_elliptic:
             raise ValueError("ContactSensors expects elliptic friction cones")
-        self.blades = np.array([scene.ids["blade_left"], scene.ids["blade_right"]])
-        self.hinges = np.array([scene.ids["hinge_left"], scene.ids["hinge_right"]])
-        self.spoon_bodies = np.array([m.geom_bodyid[g] for g in self.blades])
+        blades = [scene.ids["blade_left"], scene.ids["blade_right"]]
+        hinges = [scene.ids["hinge_left"], scene.ids["hinge_right"]]
+        # Each hinge's generalized constraint force is exactly the moment of the contacts on
+        # its half-spoon about the hinge axis, (r x f) . axis (the hinges have no limits or
+        # friction loss; tests/test_fetch.py checks it against the contact sum).
+        self.hinge_dofs = np.array([m.jnt_dofadr[j] for j in hinges])
+        self.spoon_bodies = np.array([m.geom_bodyid[g] for g in blades])
+        # geom id -> 1 (left blade), 2 (right blade), 0 (anything else); flex contacts carry
+        # geom -1, which indexes the trailing 0.
+        self.side_of = np.zeros(m.ngeom + 1, dtype=np.int64)
+        self.side_of[blades[0]], self.side_of[blades[1]] = 1, 2
+        self.rows = np.arange(3)
+        self.sides = np.array([[1], [2]])
+        self.out_sign = np.array([[-1.0], [1.0]])  # inner-face outward normal: -y left, +y right
 
     def read(self, d: mujoco.MjData) -> dict[str, np.ndarray]:
         """Per blade (index 0 left, 1 right): moment M [N m] (> 0 pushes the blade open),
         normal and tangential contact force [N], and the total force of the food on the
         end-effector [N] (world frame).
         """
-        moment = np.zeros(2)
-        normal = np.zeros(2)
-        tangential = np.zeros(2)
-        total = np.zeros(3)
+        moment = -d.qfrc_constraint[self.hinge_dofs]
+        f_sum = np.zeros((2, 3))
         nc = d.ncon
-        if not nc:
-            return {"moment": moment, "normal": normal, "tangential": tangential,
-                    "force": total}
-        con = d.contact
-        geom = con.geom[:nc]
-        # which blade (0 left, 1 right) each contact touches, -1 for none; one pass for both
-        side = np.full(nc, -1)
-        for k, g in enumerate(self.blades):
-            side[(geom[:, 0] == g) | (geom[:, 1] == g)] = k
-        adr = con.efc_address[:nc]
-        on = (side >= 0) & (adr >= 0)
-        if not on.any():
-            return {"moment": moment, "normal": normal, "tangential": tangential,
-                    "force": total}
-        side, adr, geom = side[on], adr[on], geom[on]
-        f_local = d.efc_force[adr[:, None] + np.arange(3)]  # (c, 3) in the contact frame
-        frames = con.frame[:nc][on].reshape(-1, 3, 3)  # rows: normal, t1, t2
-        f_world = np.einsum("ci,cij->cj", f_local, frames)
-        # The contact force acts on geom[1] along +normal (from geom[0] to geom[1]); flip it
-        # where the blade is geom[0], giving the force of the food on the blade.
-        f_blade = f_world * np.where(geom[:, 1] == self.blades[side], 1.0, -1.0)[:, None]
-        lever = con.pos[:nc][on] - d.xanchor[self.hinges][side]
-        axis = d.xaxis[self.hinges][side]  # each hinge's closing direction
-        # moment about the hinge axis, (r x f) . axis, as a triple product; > 0 pushes open
-        torque_on_axis = np.einsum("ci,ci->c", np.cross(lever, f_blade), axis)
-        for k in (0, 1):
-            mine = side == k
-            if not mine.any():
-                continue
-            moment[k] = -float(torque_on_axis[mine].sum())
-            f_sum = f_blade[mine].sum(axis=0)
-            # Outward normal of the blade's inner face: the spoon body's -y (left) or +y
-            # (right) axis, i.e. away from the food.
-            y_axis = d.xmat[self.spoon_bodies[k]].reshape(3, 3)[:, 1]
-            n_out = y_axis if k == 1 else -y_axis
-            normal[k] = float(f_sum @ n_out)
-            tangential[k] = float(np.linalg.norm(f_sum - normal[k] * n_out))
-            total += f_sum
-        return {"moment": moment, "normal": normal, "tangential": tangential, "force": total}
+        if nc:
+            con = d.contact
+            geom_side = self.side_of[con.geom[:nc]]  # (c, 2)
+            side = geom_side.sum(axis=1)  # blades never touch each other
+            adr = con.efc_address[:nc]
+            on = np.flatnonzero((side > 0) & (adr >= 0))
+            if on.size:
+                f_local = d.efc_force[adr[on, None] + self.rows]  # (c, 3) in the contact frame
+                frames = con.frame[on].reshape(-1, 3, 3)  # rows: normal, t1, t2
+                f_world = (f_local[:, None, :] @ frames)[:, 0]
+                # The contact force acts on geom[1] along +normal; flip it where the blade is
+                # geom[0], giving the force of the food on the blade.  The weights sum the
+                # contacts of each blade in one product.
+                sign = np.where(geom_side[on, 1] > 0, 1.0, -1.0)
+                f_sum = ((side[on] == self.sides) * sign) @ f_world  # (2, 3)
+        # Outward normal of each blade's inner face: the spoon body's y axis, away from the
+        # food (-y left, +y right).
+        n_out = d.xmat[self.spoon_bodies][:, 1::3] * self.out_sign  # (2, 3)
+        normal = (f_sum * n_out).sum(axis=1)
+        tangential = np.linalg.norm(f_sum - normal[:, None] * n_out, axis=1)
+        return {"moment": moment, "normal": normal, "tangential": tangential,
+                "force": f_sum.sum(axis=0)}

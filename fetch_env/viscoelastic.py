@@ -40,7 +40,7 @@ def _centre_gradients(rest_nodes: np.ndarray) -> np.ndarray:
 
 def corotation(x: np.ndarray, grad: np.ndarray) -> np.ndarray:
     """Rotation of the polar decomposition of F = sum_i x_i (x) dN_i at the centre, (P, 3, 3)."""
-    F = np.einsum("pia,pib->pab", x, grad)
+    F = x.transpose(0, 2, 1) @ grad
     U, _, Vt = np.linalg.svd(F)
     R = U @ Vt
     flip = np.linalg.det(R) < 0  # an inverted cell: keep R a proper rotation
@@ -88,6 +88,10 @@ class PronyForces:
         self.decay = np.array(decay)  # (P, T)
         # -g_k K, stacked per term so one einsum gives the summed force.
         self.gK = -self.g[:, :, None, None] * self.K[:, None, :, :]  # (P, T, 24, 24)
+        # The same, side by side, (P, 24, T*24): one batched matmul gives the summed force.
+        self._gK_row = self.gK.transpose(0, 2, 1, 3).reshape(self.n_pieces, 24, 24 * n_terms)
+        self._gain = 1.0 - self.decay[:, :, None]  # (P, T, 1) weight of u in the update
+        self._rest_centred = self.rest - self.rest.mean(axis=1, keepdims=True)
         self.lagged = np.zeros((self.n_pieces, n_terms, 24))
         self.active = n_terms > 0 and bool(np.any(self.g > 0))
 
@@ -99,24 +103,26 @@ class PronyForces:
 
     def _corotated(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         x = data.xpos[self.node_bodies]  # (P, 8, 3) world node positions
-        x = x - x.mean(axis=1, keepdims=True)  # translation-free; K ignores translation
+        x -= x.mean(axis=1, keepdims=True)  # translation-free; K ignores translation
         R = corotation(x, self.grad)
-        rest = self.rest - self.rest.mean(axis=1, keepdims=True)
-        u = (np.einsum("pia,pab->pib", x, R) - rest).reshape(self.n_pieces, 24)
+        u = (x @ R - self._rest_centred).reshape(self.n_pieces, 24)
         return u, R
 
     def apply(self, data: mujoco.MjData) -> None:
-        """Advance the lagged displacements by one step and write the viscous forces."""
+        """Advance the lagged displacements by one step and write the viscous forces.
+
+        Runs every physics step, so it is written as a handful of batched matmuls (numpy's
+        per-call cost, not arithmetic, dominates at these sizes).
+        """
         if not self.active:
             return
         u, R = self._corotated(data)
         # Exact exponential update of du_k/dt = (u - u_k) / tau_k over the step, with u
-        # held at its start-of-step value.
-        self.lagged = (
-            self.decay[:, :, None] * self.lagged + (1 - self.decay[:, :, None]) * u[:, None, :]
-        )
-        f_local = np.einsum("ptij,ptj->pi", self.gK, self.lagged).reshape(self.n_pieces, 8, 3)
-        f_world = np.einsum("pia,pba->pib", f_local, R)
+        # held at its start-of-step value: u_k += (1 - exp(-dt/tau_k)) (u - u_k).
+        lagged = self.lagged
+        lagged += self._gain * (u[:, None, :] - lagged)
+        f_local = self._gK_row @ lagged.reshape(self.n_pieces, -1, 1)  # (P, 24, 1)
+        f_world = f_local.reshape(self.n_pieces, 8, 3) @ R.transpose(0, 2, 1)
         data.qfrc_applied[self.dofs] = f_world.reshape(-1)
 
     def viscous_force(self, data: mujoco.MjData, lagged: np.ndarray) -> np.ndarray:

@@ -27,10 +27,12 @@ def test_soft_cube_is_fetched_and_its_weight_hangs_on_the_end_effector(fetch_res
     air = r.traces["phase"] == PHASE_CODE["air"]
     weight = single_block()[0].mass * 9.81
     # statics: in the air the food's whole weight hangs on the blades (force of the food on
-    # the end-effector points down), and nothing pushes sideways (averaged over the 1 s air
-    # hold: single 100 Hz samples carry contact micro-vibration of ~5 % of the weight, and the
-    # held cube creeps ~0.3 mm down its grip, so the 1 s mean is within 2 %, not exact).
-    np.testing.assert_allclose(r.traces["force"][air][:, 2].mean(), -weight, rtol=0.03)
+    # the end-effector points down), and nothing pushes sideways.  Measured: mean within 0.1 %,
+    # single 100 Hz samples within 1 % (std 0.3 %).  At solver tolerance 1e-8 the samples
+    # scattered by 5-11 % and the mean was off by up to 7 %: the solve stopped early.
+    fz = r.traces["force"][air][:, 2]
+    np.testing.assert_allclose(fz.mean(), -weight, rtol=0.01)
+    np.testing.assert_allclose(fz, -weight, rtol=0.03)
     assert np.abs(r.traces["force"][air][:, :2].mean(axis=0)).max() < 0.02 * weight
     # symmetric clamp: left and right moments agree in the air
     np.testing.assert_allclose(r.traces["moment_left"][air].mean(),
@@ -92,6 +94,28 @@ def _trace_digest() -> str:
     r = FetchSimulator(single_block("sphere")).run("fetch", FetchAction(theta_d=0.05, hold=0.2,
                                                                 air_hold=0.2))
     return json.dumps({k: np.asarray(v).tolist() for k, v in r.traces.items()})
+
+
+def _model_digest(seed: int) -> str:
+    """Hash of a diced mix's compiled masses, inertias and flex stiffness."""
+    import hashlib
+
+    from fetch_env.layouts import diced_mix
+
+    m = build_scene(diced_mix(np.random.default_rng(seed))).model
+    fields = ("body_mass", "body_inertia", "dof_invweight0", "flex_stiffness")
+    return hashlib.sha256(b"".join(getattr(m, f).tobytes() for f in fields)).hexdigest()
+
+
+def test_first_build_in_a_process_compiles_like_every_later_one() -> None:
+    # Measured before the fix: the first diced mix built in a process had 32 node masses
+    # differing in their last bits from every later build, and a fetch that diverged after
+    # another scene ran cleanly on its own.
+    here = _model_digest(1003)  # this process has built many scenes already
+    code = "import tests.test_fetch as t; print(t._model_digest(1003))"
+    cold = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True).stdout.strip()
+    assert cold == here
 
 
 def test_bit_identical_twice_in_one_process_and_across_processes() -> None:
