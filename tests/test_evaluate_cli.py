@@ -107,15 +107,17 @@ def test_two_workers_give_the_same_numbers(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_two_workers_are_faster(tmp_path: Path) -> None:
-    tasks = [ev.Task("study", "FoodFetch-Block-v0", i, 60 + i) for i in range(40)]
-    t = time.perf_counter()
-    ev.run_tasks(tasks, workers=1)
-    t1 = time.perf_counter() - t
-    t = time.perf_counter()
-    ev.run_tasks(tasks, workers=2)
-    t2 = time.perf_counter() - t
-    assert t2 < 0.9 * t1, (t1, t2)  # 1.3x measured on 2 shared cores (spawn start-up)
+def test_two_workers_give_the_same_episodes_as_one() -> None:
+    # Their speed-up is a benchmark (benchmarks/bench_env.py), not a timed test: on 2 shared
+    # cores a timing assertion fails whenever something else runs.
+    tasks = [ev.Task(a, "FoodFetch-Block-v0", i, 60 + i) for i in range(3)
+             for a in ("study", "random")]
+    one = ev.run_tasks(tasks, workers=1)
+    two = ev.run_tasks(tasks, workers=2)
+    key = lambda r: (r["agent"], r["episode"])  # noqa: E731
+    one, two = sorted(one, key=key), sorted(two, key=key)
+    assert [key(r) for r in one] == [key(r) for r in two]
+    assert [r["reward"] for r in one] == [r["reward"] for r in two]
 
 
 @pytest.mark.slow
