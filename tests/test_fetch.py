@@ -131,3 +131,45 @@ def test_bit_identical_twice_in_one_process_and_across_processes() -> None:
                          check=True).stdout.strip()
     import hashlib
     assert out == hashlib.sha256(first.encode()).hexdigest()
+
+
+def test_sensor_readout_equals_a_contact_by_contact_sum() -> None:
+    """The vectorized readout (moment from the hinges' constraint force, forces from one
+    gather) against an independent loop over mj_contactForce with lever arms."""
+    import mujoco
+
+    from fetch_env.sensors import ContactSensors
+
+    sim = FetchSimulator(single_block())
+    scene = sim.scene_for("fetch")
+    m = scene.model
+    sensors = ContactSensors(scene)
+    blades = [scene.ids["blade_left"], scene.ids["blade_right"]]
+    hinges = [scene.ids["hinge_left"], scene.ids["hinge_right"]]
+    worst = {"moment": 0.0, "force": 0.0}
+    peak = {"moment": 0.0, "force": 0.0}
+
+    def check(d) -> None:
+        moment, force = np.zeros(2), np.zeros(3)
+        f6 = np.zeros(6)
+        for c in range(d.ncon):
+            con = d.contact[c]
+            for k, g in enumerate(blades):
+                if g not in con.geom or con.efc_address < 0:
+                    continue
+                mujoco.mj_contactForce(m, d, c, f6)
+                f = con.frame.reshape(3, 3).T @ f6[:3]  # on geom[1], world frame
+                f_blade = f if con.geom[1] == g else -f
+                lever = con.pos - d.xanchor[hinges[k]]
+                moment[k] -= np.cross(lever, f_blade) @ d.xaxis[hinges[k]]
+                force += f_blade
+        reading = sensors.read(d)
+        worst["moment"] = max(worst["moment"], np.abs(reading["moment"] - moment).max())
+        worst["force"] = max(worst["force"], np.abs(reading["force"] - force).max())
+        peak["moment"] = max(peak["moment"], np.abs(moment).max())
+        peak["force"] = max(peak["force"], np.abs(force).max())
+
+    sim.run("fetch", FetchAction(theta_d=0.045, hold=0.2, air_hold=0.2), observer=check)
+    assert peak["moment"] > 0.05 and peak["force"] > 0.01  # the clamp was real
+    assert worst["moment"] < 1e-9 * max(1.0, peak["moment"])
+    assert worst["force"] < 1e-9 * max(1.0, peak["force"])
