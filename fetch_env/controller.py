@@ -342,8 +342,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
             rec["tangential_left"][r], rec["tangential_right"][r] = reading["tangential"]
             rec["force"][r] = reading["force"]
             rec["blade_overlap"][r] = overlap(d)
-            low_now, _ = positions(d)
-            np.minimum(lowest_z, low_now, out=lowest_z)
+            np.minimum(lowest_z, positions.lowest(d), out=lowest_z)
             le_trace[r] = strain.piece_strain(d)
             if observer is not None:
                 observer(d)

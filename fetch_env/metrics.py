@@ -34,14 +34,14 @@ class StrainMeter:
         self.n_pieces = len(scene.pieces)
         X = rest.flexvert_xpos[self.elems]  # (E, 4, 3)
         Dm = (X[:, 1:] - X[:, :1]).transpose(0, 2, 1)
-        self.Dm_inv = np.linalg.inv(Dm)
+        Dm_inv = np.linalg.inv(Dm)
         # F[e, i, j] = sum_k (x[v_k+1, i] - x[v_0, i]) Dm_inv[e, k, j]: a (9E, 3V) matrix B
         # with F.ravel() = B @ x.ravel().
         n_el = len(self.elems)
         e_idx, i_idx, j_idx, k_idx = np.meshgrid(np.arange(n_el), np.arange(3), np.arange(3),
                                                  np.arange(3), indexing="ij")
         row = (e_idx * 9 + i_idx * 3 + j_idx).ravel()
-        coef = self.Dm_inv[e_idx, k_idx, j_idx].ravel()
+        coef = Dm_inv[e_idx, k_idx, j_idx].ravel()
         col_tip = (self.elems[e_idx, k_idx + 1] * 3 + i_idx).ravel()
         col_base = (self.elems[e_idx, 0] * 3 + i_idx).ravel()
         n_cols = rest.flexvert_xpos.size
@@ -78,16 +78,15 @@ class PiecePositions:
         self.first = np.concatenate([[0], np.cumsum(num)[:-1]])
         self.num = num
 
+    def lowest(self, data: mujoco.MjData) -> np.ndarray:
+        """Lowest vertex height of each piece, (P,): the per-sample plate pass-through check."""
+        return np.minimum.reduceat(data.flexvert_xpos[self.verts, 2], self.first)
+
     def __call__(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         v = data.flexvert_xpos[self.verts]
         low = np.minimum.reduceat(v[:, 2], self.first)
         centre = np.add.reduceat(v, self.first, axis=0) / self.num[:, None]
         return low, centre
-
-
-def piece_positions(scene: Scene, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-    """Lowest vertex height and vertex centroid of each piece: (P,), (P, 3)."""
-    return PiecePositions(scene)(data)
 
 
 def residual_plastic_strain(scene: Scene, data: mujoco.MjData) -> list[float | None]:
@@ -126,8 +125,3 @@ class BladeOverlap:
         inside = (np.abs(local[..., 0]) <= half[..., 0]) & (np.abs(local[..., 2]) <= half[..., 2])
         depth = np.where(inside, half[..., 1] - self.inward * local[..., 1], 0.0)
         return max(0.0, float(depth.max()))
-
-
-def blade_overlap(scene: Scene, data: mujoco.MjData) -> float:
-    """:class:`BladeOverlap` of ``scene`` now (a one-off reading)."""
-    return BladeOverlap(scene)(data)
