@@ -23,7 +23,7 @@ from fetch_env.controller import FetchAction, FetchSimulator, make_profile, serv
 from fetch_env.errors import SimulationDivergedError
 from fetch_env.layouts import diced_mix, single_block
 from fetch_env.scene import initial_state
-from fetch_env.viscoelastic import PronyForces
+from fetch_env.viscoelastic import PronyRelaxation
 
 
 def bare_loop(sim: FetchSimulator, action: FetchAction, prony: bool = False) -> float:
@@ -41,8 +41,8 @@ def bare_loop(sim: FetchSimulator, action: FetchAction, prony: bool = False) -> 
     ids = scene.ids
     left, right, up = ids["servo_left"], ids["servo_right"], ids["servo_lift"]
     d = initial_state(scene)
-    forces = PronyForces(scene)
-    forces.reset(d)
+    forces = PronyRelaxation(scene)
+    forces.reset(d)  # (the same rest shape as a run starts with)
     stepping = 0.0
     for i in range(len(hinge)):
         d.ctrl[left] = d.ctrl[right] = hinge[i]
@@ -52,6 +52,7 @@ def bare_loop(sim: FetchSimulator, action: FetchAction, prony: bool = False) -> 
         t = time.perf_counter()
         mujoco.mj_step(m, d)
         stepping += time.perf_counter() - t
+    forces.restore()
     return stepping
 
 

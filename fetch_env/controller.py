@@ -28,7 +28,7 @@ from fetch_env.layouts import Piece
 from fetch_env.metrics import BladeOverlap, PiecePositions, StrainMeter, residual_plastic_strain
 from fetch_env.scene import Geometry, Scene, build_scene, initial_state, simulated_young
 from fetch_env.sensors import ContactSensors
-from fetch_env.viscoelastic import PronyForces
+from fetch_env.viscoelastic import PronyRelaxation
 
 Experiment = Literal["fetch", "relaxation", "slip"]
 EXPERIMENTS: tuple[str, ...] = ("fetch", "relaxation", "slip")
@@ -274,7 +274,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     profile = make_profile(experiment, action, dt)
     n = len(profile.theta)
     every = max(1, round(1.0 / (record_hz * dt)))
-    prony = PronyForces(scene)
+    prony = PronyRelaxation(scene)
     prony.reset(d)
     strain = StrainMeter(scene, d)
 
@@ -318,35 +318,38 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     load = 0.0  # the motor's load moment, low-passed over STALL_TIME (contact impulses pass)
     smooth = 1.0 - math.exp(-dt / STALL_TIME)
     left, right = servos
-    for i in range(n):
-        load += smooth * (float(np.abs(qfrc_constraint[hinge_dofs]).max()) - load)
-        if stall_cap == np.inf and load > STALL_MOMENT:
-            # A real clamping motor cannot push harder than its stall moment: the blades
-            # stop where they are (stiff pieces are held, not crushed).
-            stall_cap = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]])
-        ctrl[left] = ctrl[right] = min(ctrl_hinge[i], stall_cap)
-        ctrl[lift_act] = ctrl_lift[i]
-        prony.apply(d)
-        mujoco.mj_step(m, d)
-        if bad_qacc_count.number:  # autoreset is off: the state is still the bad one
-            raise fail("bad or non-finite acceleration")
-        if i % every == 0:
-            rec["t"][r] = d.time
-            rec["phase"][r] = profile.phase[i]
-            rec["theta"][r] = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]]) - q_open
-            rec["theta_cmd"][r] = profile.theta[min(i + 1, n - 1)]
-            rec["lift"][r] = qpos[lift_q]
-            reading = sensors.read(d)
-            rec["moment_left"][r], rec["moment_right"][r] = reading["moment"]
-            rec["normal_left"][r], rec["normal_right"][r] = reading["normal"]
-            rec["tangential_left"][r], rec["tangential_right"][r] = reading["tangential"]
-            rec["force"][r] = reading["force"]
-            rec["blade_overlap"][r] = overlap(d)
-            np.minimum(lowest_z, positions.lowest(d), out=lowest_z)
-            le_trace[r] = strain.piece_strain(d)
-            if observer is not None:
-                observer(d)
-            r += 1
+    try:
+        for i in range(n):
+            load += smooth * (float(np.abs(qfrc_constraint[hinge_dofs]).max()) - load)
+            if stall_cap == np.inf and load > STALL_MOMENT:
+                # A real clamping motor cannot push harder than its stall moment: the blades
+                # stop where they are (stiff pieces are held, not crushed).
+                stall_cap = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]])
+            ctrl[left] = ctrl[right] = min(ctrl_hinge[i], stall_cap)
+            ctrl[lift_act] = ctrl_lift[i]
+            prony.apply(d)
+            mujoco.mj_step(m, d)
+            if bad_qacc_count.number:  # autoreset is off: the state is still the bad one
+                raise fail("bad or non-finite acceleration")
+            if i % every == 0:
+                rec["t"][r] = d.time
+                rec["phase"][r] = profile.phase[i]
+                rec["theta"][r] = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]]) - q_open
+                rec["theta_cmd"][r] = profile.theta[min(i + 1, n - 1)]
+                rec["lift"][r] = qpos[lift_q]
+                reading = sensors.read(d)
+                rec["moment_left"][r], rec["moment_right"][r] = reading["moment"]
+                rec["normal_left"][r], rec["normal_right"][r] = reading["normal"]
+                rec["tangential_left"][r], rec["tangential_right"][r] = reading["tangential"]
+                rec["force"][r] = reading["force"]
+                rec["blade_overlap"][r] = overlap(d)
+                np.minimum(lowest_z, positions.lowest(d), out=lowest_z)
+                le_trace[r] = strain.piece_strain(d)
+                if observer is not None:
+                    observer(d)
+                r += 1
+    finally:
+        prony.restore()  # the model's compiled rest shape, for the next run
     wall = time.perf_counter() - wall
     if not np.isfinite(d.qpos).all():
         raise fail("non-finite state")

@@ -1,21 +1,35 @@
-"""Prony-series viscoelasticity on top of MuJoCo's flex elasticity.
+"""Prony-series viscoelasticity on top of MuJoCo's flex elasticity, as a moving rest shape.
 
 MuJoCo 4 computes the elastic force of a one-cell trilinear flex as a corotational linear
 element: ``f = R K (R^T x - X0)``, with ``K`` the compiled 24x24 cell stiffness
 (``mjModel.flex_stiffness``, scaled by the flex's Young's modulus), ``x`` the 8 node
-positions and ``R`` the rotation of the polar decomposition of the deformation gradient at
-the cell centre.  (``tests/test_viscoelastic.py`` checks this against ``qfrc_passive`` on
-randomly deformed and rotated pieces.)
+positions, ``X0`` the rest shape (``mjModel.flex_node0``) and ``R`` the rotation of the polar
+decomposition of the deformation gradient at the cell centre.  (``tests/test_viscoelastic.py``
+checks this against ``qfrc_passive`` on randomly deformed and rotated pieces.)
 
 Because that law is linear in the corotated displacement ``u = R^T x - X0``, a standard
 linear solid / Prony series is exact on the same discretization: with MuJoCo's modulus set
 to the instantaneous ``E_0``, each Prony term k keeps a lagged displacement ``u_k`` with
-``du_k/dt = (u - u_k) / tau_k`` (updated exactly over a step) and adds the force
-``-g_k R K u_k``.  At t = 0+ the total is ``K u`` (E_0); once relaxed it is
+``du_k/dt = (u - u_k) / tau_k`` (updated exactly over a step), and the total force is
+``R K (u - sum_k g_k u_k)``.  At t = 0+ that is ``K u`` (E_0); once relaxed it is
 ``(1 - sum g_k) K u`` (E_inf); in between it follows E(t) of the Prony series.
 
-The force goes into ``mjData.qfrc_applied`` of the node slide joints, owned by this object
-(no global MuJoCo callback), so any number of simulations can run in one process.
+The viscous part is applied by moving the rest shape: ``X0' = X0 + sum_k g_k u_k``, written
+into ``mjModel.flex_node0``, which MuJoCo reads at every step.  An earlier version added the
+same force, ``-sum_k g_k R K u_k``, to ``qfrc_applied`` instead; it is equal to first order
+but it diverged: a piece released from the clamp keeps its viscous stress for seconds, and
+that stress, held as a self-equilibrated pair of an explicit force and MuJoCo's implicit
+elastic force, is not rotated consistently by MuJoCo's linearized step, so the free piece
+spun up (its angular momentum grew 40x in one contact-free step) and blew up.  Measured on
+small hard ellipsoids clamped to 0.3 rad: 15 of 18 diverged with the force, none with the
+rest shape (none with the Prony terms switched off either); in 9-piece diced mixes at
+0.085 rad, 5 of 24 diverged with the force and none of 36 with the rest shape.  As a moving
+rest shape the released piece simply relaxes back toward its original shape, with no
+stored force for MuJoCo to mis-rotate.
+
+The rest shape belongs to this object's model and is restored by :meth:`reset` (and
+:meth:`restore`), so runs stay independent and reproducible; no global MuJoCo callback is
+used, so any number of simulations can run in one process.
 """
 
 from __future__ import annotations
@@ -50,18 +64,19 @@ def corotation(x: np.ndarray, grad: np.ndarray) -> np.ndarray:
     return R
 
 
-class PronyForces:
-    """The viscous (Prony) forces of every piece in a scene.
+class PronyRelaxation:
+    """The Prony relaxation of every piece in a scene, as a moving rest shape.
 
-    Call :meth:`apply` once per physics step, before ``mj_step``; it updates the lagged
-    displacements exactly for the step and writes the forces into ``qfrc_applied``.
+    Call :meth:`reset` at the start of a run and :meth:`apply` once per physics step, before
+    ``mj_step``; it updates the lagged displacements exactly for the step and moves the rest
+    shape in ``mjModel.flex_node0``.  :meth:`restore` puts the compiled rest shape back.
     """
 
     def __init__(self, scene: Scene) -> None:
         m = scene.model
         self.model = m
         dt = m.opt.timestep
-        node_bodies, dofs, stiff, g, decay, rest = [], [], [], [], [], []
+        node_bodies, node_adr, dofs, stiff, g, decay = [], [], [], [], [], []
         n_terms = max(len(p.material.prony_terms) for p in scene.pieces)
         for p, f in zip(scene.pieces, scene.piece_flex, strict=True):
             adr, num = m.flex_nodeadr[f], m.flex_nodenum[f]
@@ -69,10 +84,10 @@ class PronyForces:
                 raise ValueError(f"flex {f} is not a one-cell trilinear flex")
             bodies = m.flex_nodebodyid[adr : adr + num]
             node_bodies.append(bodies)
+            node_adr.append(adr + np.arange(num))
             dofs.append(np.concatenate([m.body_dofadr[b] + np.arange(3) for b in bodies]))
             k = m.flex_stiffness[m.flex_stiffnessadr[f] : m.flex_stiffnessadr[f] + 576]
             stiff.append(np.asarray(k).reshape(24, 24))
-            rest.append(m.body_pos[bodies])  # node rest positions in the piece frame
             terms = list(p.material.prony_terms) + [(0.0, 1.0)] * n_terms
             terms = terms[:n_terms]
             g.append([t[0] for t in terms])
@@ -80,53 +95,62 @@ class PronyForces:
         self.n_pieces = len(scene.pieces)
         self.n_terms = n_terms
         self.node_bodies = np.array(node_bodies)  # (P, 8)
+        self.node_adr = np.concatenate(node_adr)  # (P*8,) rows of flex_node0
         self.dofs = np.concatenate(dofs)  # (P*24,)
-        self.K = np.array(stiff)  # (P, 24, 24)
-        self.rest = np.array(rest)  # (P, 8, 3)
-        self.grad = _centre_gradients(self.rest)
+        self.K = np.array(stiff)  # (P, 24, 24), MuJoCo's sign: elastic force = R K u
+        rest = np.array([m.body_pos[b] for b in node_bodies])  # (P, 8, 3) in the piece frame
+        self.grad = _centre_gradients(rest)
         self.g = np.array(g)  # (P, T)
         self.decay = np.array(decay)  # (P, T)
-        # -g_k K, stacked per term so one einsum gives the summed force.
-        self.gK = -self.g[:, :, None, None] * self.K[:, None, :, :]  # (P, T, 24, 24)
-        # The same, side by side, (P, 24, T*24): one batched matmul gives the summed force.
-        self._gK_row = self.gK.transpose(0, 2, 1, 3).reshape(self.n_pieces, 24, 24 * n_terms)
+        self._g_row = self.g[:, None, :]  # (P, 1, T): one batched matmul sums g_k u_k
         self._gain = 1.0 - self.decay[:, :, None]  # (P, T, 1) weight of u in the update
-        self._rest_centred = self.rest - self.rest.mean(axis=1, keepdims=True)
+        self._rest_centred = rest - rest.mean(axis=1, keepdims=True)
+        self.rest0 = np.array(m.flex_node0[self.node_adr])  # the compiled rest shape
         self.lagged = np.zeros((self.n_pieces, n_terms, 24))
         self.active = n_terms > 0 and bool(np.any(self.g > 0))
 
+    def restore(self) -> None:
+        """Put the compiled rest shape back into the model."""
+        self.model.flex_node0[self.node_adr] = self.rest0
+
     def reset(self, data: mujoco.MjData) -> None:
         """Start relaxed at the current configuration (no stored viscous stress)."""
+        self.restore()
         if self.n_terms:
             u, _ = self._corotated(data)
             self.lagged[:] = u[:, None, :]
+            self._move_rest_shape()
 
     def _corotated(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+        """Corotated displacement from the compiled rest shape (P, 24), and R (P, 3, 3)."""
         x = data.xpos[self.node_bodies]  # (P, 8, 3) world node positions
         x -= x.mean(axis=1, keepdims=True)  # translation-free; K ignores translation
         R = corotation(x, self.grad)
         u = (x @ R - self._rest_centred).reshape(self.n_pieces, 24)
         return u, R
 
-    def apply(self, data: mujoco.MjData) -> None:
-        """Advance the lagged displacements by one step and write the viscous forces.
+    def _move_rest_shape(self) -> None:
+        shift = self._g_row @ self.lagged  # (P, 1, 24): sum_k g_k u_k
+        self.model.flex_node0[self.node_adr] = self.rest0 + shift.reshape(-1, 3)
 
-        Runs every physics step, so it is written as a handful of batched matmuls (numpy's
-        per-call cost, not arithmetic, dominates at these sizes).
+    def apply(self, data: mujoco.MjData) -> None:
+        """Advance the lagged displacements by one step and move the rest shape.
+
+        Runs every physics step, so it is written as a handful of batched numpy calls
+        (numpy's per-call cost, not arithmetic, dominates at these sizes).
         """
         if not self.active:
             return
-        u, R = self._corotated(data)
+        u, _ = self._corotated(data)
         # Exact exponential update of du_k/dt = (u - u_k) / tau_k over the step, with u
         # held at its start-of-step value: u_k += (1 - exp(-dt/tau_k)) (u - u_k).
         lagged = self.lagged
         lagged += self._gain * (u[:, None, :] - lagged)
-        f_local = self._gK_row @ lagged.reshape(self.n_pieces, -1, 1)  # (P, 24, 1)
-        f_world = f_local.reshape(self.n_pieces, 8, 3) @ R.transpose(0, 2, 1)
-        data.qfrc_applied[self.dofs] = f_world.reshape(-1)
+        self._move_rest_shape()
 
     def viscous_force(self, data: mujoco.MjData, lagged: np.ndarray) -> np.ndarray:
-        """The force -sum_k g_k R K u_k for given lagged displacements (for tests), (P, 8, 3)."""
+        """The viscous force ``-sum_k g_k R K u_k`` the rest shift amounts to (to first
+        order), for given lagged displacements, shape (P, 8, 3); for tests."""
         _, R = self._corotated(data)
-        f_local = np.einsum("ptij,ptj->pi", self.gK, lagged).reshape(self.n_pieces, 8, 3)
-        return np.einsum("pia,pba->pib", f_local, R)
+        f_local = -np.einsum("pt,pij,ptj->pi", self.g, self.K, lagged)
+        return np.einsum("pia,pba->pib", f_local.reshape(self.n_pieces, 8, 3), R)

@@ -10,7 +10,7 @@ import numpy as np
 from fetch_env.layouts import Piece
 from fetch_env.materials import Material
 from fetch_env.scene import Geometry, PoseInfo, Scene
-from fetch_env.viscoelastic import PronyForces
+from fetch_env.viscoelastic import PronyRelaxation
 
 PLATES_XML = """
 <mujoco>
@@ -53,7 +53,7 @@ def press(material: Material, size: float = 0.015, strain: float = 0.03,
                   pose=PoseInfo(0.05, 0.0, 0.0, 0.2, 0.01, (0.0, 0.0), 0.061),
                   piece_flex=[0])
     d = mujoco.MjData(model)
-    prony = PronyForces(scene)
+    prony = PronyRelaxation(scene)
     mujoco.mj_forward(model, d)
     prony.reset(d)
     top = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "top")
