@@ -2,9 +2,9 @@
 
 Two bare loops step the same compiled model for the same number of steps with the same servo
 commands (so the blades close and the contacts form), timing mj_step alone: one without the
-Prony forces (purely elastic food: a different, cheaper trajectory), one with them applied
+Prony relaxation (purely elastic food: a different, cheaper trajectory), one with it applied
 untimed (the fetch's own states).  The second ratio is the cost of everything this project
-adds to MuJoCo: Prony forces, sensor readout, strain meter, recording.
+adds to MuJoCo: Prony relaxation, sensor readout, strain meter, recording.
 
 Run: python benchmarks/bench_simulator.py   (medians of 5 runs; one core)
 """
@@ -31,7 +31,7 @@ def bare_loop(sim: FetchSimulator, action: FetchAction, prony: bool = False) -> 
 
     Without ``prony`` the food is purely elastic: a different trajectory (measured: 4.1
     instead of 6.4 Newton iterations a step, because the relaxing food holds differently), so
-    that ratio mixes physics with overhead.  With ``prony`` the Prony forces are applied
+    that ratio mixes physics with overhead.  With ``prony`` the Prony rest shape is moved
     (untimed) so mj_step sees exactly the fetch's states: the ratio is pure overhead.
     """
     scene = sim.scene_for("fetch")
