@@ -101,9 +101,8 @@ class PronyRelaxation:
         rest = np.array([m.body_pos[b] for b in node_bodies])  # (P, 8, 3) in the piece frame
         self.grad = _centre_gradients(rest)
         self.g = np.array(g)  # (P, T)
-        self.decay = np.array(decay)  # (P, T)
         self._g_row = self.g[:, None, :]  # (P, 1, T): one batched matmul sums g_k u_k
-        self._gain = 1.0 - self.decay[:, :, None]  # (P, T, 1) weight of u in the update
+        self._gain = 1.0 - np.array(decay)[:, :, None]  # (P, T, 1) weight of u in the update
         self._rest_centred = rest - rest.mean(axis=1, keepdims=True)
         self.rest0 = np.array(m.flex_node0[self.node_adr])  # the compiled rest shape
         self.lagged = np.zeros((self.n_pieces, n_terms, 24))
