@@ -308,6 +308,10 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     qpos, qfrc_constraint, ctrl = d.qpos, d.qfrc_constraint, d.ctrl
     bad_qacc_count = d.warning[bad_qacc]
     hinge_dofs = np.array(hinge_v)
+    # Sleeping islands (multi-piece scenes, see scene.py): while every piece sleeps only the
+    # robot's dofs are awake, the nodes are frozen, and the relaxation and strain can wait.
+    robot_nv = m.nv - sum(3 * m.flex_nodenum[f] for f in scene.piece_flex)
+    moved = True  # a piece moved since the last strain sample
     wall = time.perf_counter()
     r = 0
     stall_cap = np.inf  # the angle the motor stalled at: the command never goes past it
@@ -327,8 +331,10 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
                 stall_cap = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]])
             ctrl[left] = ctrl[right] = min(ctrl_hinge[i], stall_cap)
             ctrl[lift_act] = ctrl_lift[i]
-            prony.apply(d)
+            asleep = d.nv_awake == robot_nv
+            prony.apply(d, asleep)
             mujoco.mj_step(m, d)
+            moved = moved or not (asleep and d.nv_awake == robot_nv)
             if bad_qacc_count.number:  # autoreset is off: the state is still the bad one
                 raise fail("bad or non-finite acceleration")
             if i % every == 0:
@@ -344,7 +350,11 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
                 rec["force"][r] = reading["force"]
                 rec["blade_overlap"][r] = overlap(d)
                 np.minimum(lowest_z, positions.lowest(d), out=lowest_z)
-                le_trace[r] = strain.piece_strain(d)
+                if moved or r == 0:
+                    le_trace[r] = strain.piece_strain(d)
+                    moved = False
+                else:
+                    le_trace[r] = le_trace[r - 1]
                 if observer is not None:
                     observer(d)
                 r += 1

@@ -187,6 +187,16 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         blade = spec.geom(f"blade_{side}")
         blade.size = [geometry.blade_width / 2, BLADE_HALF_THICKNESS, geometry.blade_length / 2]
         blade.pos = [0.0, sign * (offset + BLADE_HALF_THICKNESS), -geometry.blade_length / 2]
+    if len(pieces) > 1:
+        # MuJoCo's sleeping islands take pieces resting on the plate, untouched, out of the
+        # pipeline (their plate contacts are most of a diced mix's constraints) until a blade
+        # or another piece touches them; the stage is actuated, so it and whatever it holds
+        # never sleep.  A lone piece is always the one being clamped, so there is nothing to
+        # save, and single-piece scenes (every physics test and every probe) keep the exact
+        # trajectories they were validated with: a piece that slept meets the blade with a
+        # different first-contact transient, and a clamp near the slip limit can end
+        # differently (measured: a 0.045 rad fetch of the default cube).
+        spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     plate = spec.geom("plate")
     plate.friction = [pieces[0].material.plate_mu, 0.005, 0.0001]
 

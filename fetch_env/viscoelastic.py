@@ -102,7 +102,9 @@ class PronyRelaxation:
         self.grad = _centre_gradients(rest)
         self.g = np.array(g)  # (P, T)
         self._g_row = self.g[:, None, :]  # (P, 1, T): one batched matmul sums g_k u_k
-        self._gain = 1.0 - np.array(decay)[:, :, None]  # (P, T, 1) weight of u in the update
+        self._decay = np.array(decay)[:, :, None]  # (P, T, 1) exp(-dt / tau_k)
+        self._gain = 1.0 - self._decay  # weight of u in the one-step update
+        self._pending = 0  # steps skipped while every piece slept (see apply)
         self._rest_centred = rest - rest.mean(axis=1, keepdims=True)
         self.rest0 = np.array(m.flex_node0[self.node_adr])  # the compiled rest shape
         self.lagged = np.zeros((self.n_pieces, n_terms, 24))
@@ -115,6 +117,7 @@ class PronyRelaxation:
     def reset(self, data: mujoco.MjData) -> None:
         """Start relaxed at the current configuration (no stored viscous stress)."""
         self.restore()
+        self._pending = 0
         if self.n_terms:
             u, _ = self._corotated(data)
             self.lagged[:] = u[:, None, :]
@@ -132,19 +135,32 @@ class PronyRelaxation:
         shift = self._g_row @ self.lagged  # (P, 1, 24): sum_k g_k u_k
         self.model.flex_node0[self.node_adr] = self.rest0 + shift.reshape(-1, 3)
 
-    def apply(self, data: mujoco.MjData) -> None:
+    def apply(self, data: mujoco.MjData, asleep: bool = False) -> None:
         """Advance the lagged displacements by one step and move the rest shape.
 
         Runs every physics step, so it is written as a handful of batched numpy calls
         (numpy's per-call cost, not arithmetic, dominates at these sizes).
+
+        ``asleep``: every piece is asleep (MuJoCo's sleeping islands): their nodes are frozen,
+        so ``u`` is constant and the update can wait; the next awake call advances over all
+        the pending steps at once with the exact decay ``exp(-k dt / tau_k)``, which is exact
+        for a constant ``u``.
         """
         if not self.active:
+            return
+        if asleep:
+            self._pending += 1
             return
         u, _ = self._corotated(data)
         # Exact exponential update of du_k/dt = (u - u_k) / tau_k over the step, with u
         # held at its start-of-step value: u_k += (1 - exp(-dt/tau_k)) (u - u_k).
+        if self._pending:
+            gain = 1.0 - self._decay ** (self._pending + 1)
+            self._pending = 0
+        else:
+            gain = self._gain
         lagged = self.lagged
-        lagged += self._gain * (u[:, None, :] - lagged)
+        lagged += gain * (u[:, None, :] - lagged)
         self._move_rest_shape()
 
     def viscous_force(self, data: mujoco.MjData, lagged: np.ndarray) -> np.ndarray:
