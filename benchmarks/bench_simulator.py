@@ -20,7 +20,6 @@ import mujoco
 import numpy as np
 
 from fetch_env.controller import FetchAction, FetchSimulator, make_profile, servo_commands
-from fetch_env.errors import SimulationDivergedError
 from fetch_env.layouts import diced_mix, single_block
 from fetch_env.scene import initial_state
 from fetch_env.viscoelastic import PronyRelaxation
@@ -43,12 +42,13 @@ def bare_loop(sim: FetchSimulator, action: FetchAction, prony: bool = False) -> 
     d = initial_state(scene)
     forces = PronyRelaxation(scene)
     forces.reset(d)  # (the same rest shape as a run starts with)
+    robot_nv = m.nv - sum(3 * m.flex_nodenum[f] for f in scene.piece_flex)
     stepping = 0.0
     for i in range(len(hinge)):
         d.ctrl[left] = d.ctrl[right] = hinge[i]
         d.ctrl[up] = lift[i]
         if prony:
-            forces.apply(d)  # not timed: only mj_step is
+            forces.apply(d, d.nv_awake == robot_nv)  # not timed: only mj_step is
         t = time.perf_counter()
         mujoco.mj_step(m, d)
         stepping += time.perf_counter() - t
@@ -80,14 +80,14 @@ if __name__ == "__main__":
     print(f"machine: {platform.machine()} {platform.processor()}, {os.cpu_count()} cores, "
           f"python {platform.python_version()}, mujoco {mujoco.__version__}")
     bench("single 15 mm soft cube", single_block(), FetchAction())
-    # Diced mixes with 0.0123 MPa dice crushed beside stiff ones diverge in ~1 of 4 fetches
-    # (see README, Status); time the first seed whose fetch runs through, and say which.
-    for seed in range(1, 20):
-        pieces = diced_mix(np.random.default_rng(seed), n_pieces=9)
-        try:
-            FetchSimulator(pieces).run("fetch", FetchAction(theta_d=0.085))
-        except SimulationDivergedError:
-            print(f"(diced mix seed {seed} diverged; trying the next)")
-            continue
-        bench(f"9-piece diced mix, seed {seed}", pieces, FetchAction(theta_d=0.085))
-        break
+    # A diced fetch's cost depends on its trajectory (which columns the blades grip, how many
+    # pieces wake, how long the solver takes in each contact event), and that trajectory is
+    # chaotic: any change to the simulator moves one seed's figure by up to 2x.  So the
+    # diced figure is the median over several seeded mixes, one run each.
+    rows = [bench(f"9-piece diced mix, seed {seed}",
+                  diced_mix(np.random.default_rng(seed), n_pieces=9),
+                  FetchAction(theta_d=0.085), repeats=1) for seed in range(1, 6)]
+    print(f"{'9-piece diced mix, median':26s} "
+          f"{statistics.median(r['realtime'] for r in rows):6.1f}x real time  "
+          f"ratio {statistics.median(r['ratio'] for r in rows):4.2f}  ratio to mj_step on the "
+          f"same states {statistics.median(r['ratio_visco'] for r in rows):4.2f}")

@@ -203,3 +203,16 @@ def test_untouched_pieces_sleep_and_stay_where_they_rest() -> None:
         np.testing.assert_allclose(a["final_centre"], b["final_centre"], rtol=0, atol=5e-6)
         np.testing.assert_allclose(a["max_log_strain_clamp"], b["max_log_strain_clamp"],
                                    rtol=0, atol=1e-4)
+
+
+def test_closed_form_extreme_eigenvalues_match_lapack() -> None:
+    from fetch_env.metrics import extreme_eigenvalues
+
+    rng = np.random.default_rng(4)
+    F = np.eye(3) + 0.5 * rng.normal(size=(5000, 3, 3))
+    C = F.transpose(0, 2, 1) @ F
+    C[:3] = np.diag([1.0, 1.0, 1.0]), np.diag([2.0, 2.0, 3.0]), np.diag([1.0, 1.0, 1 + 1e-9])
+    lo, hi = extreme_eigenvalues(C)
+    ev = np.linalg.eigvalsh(C)
+    np.testing.assert_allclose(lo, ev[:, 0], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(hi, ev[:, -1], rtol=0, atol=1e-8)

@@ -140,3 +140,22 @@ def test_steps_deferred_while_asleep_catch_up_exactly() -> None:
     np.testing.assert_allclose(results[1][1], results[0][1], rtol=1e-12, atol=1e-18)
     # and it did relax: 41 steps of 5 ms at tau 0.5 s move u_k ~34 % of the way to u
     assert np.abs(results[0][0] - start).max() > 1e-5
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+def test_warm_started_rotation_is_the_polar_rotation(shape: str) -> None:
+    """MuJoCo's mju_mat2Rot, warm-started from the last step, gives the SVD's polar rotation,
+    cold (identity start, up to ~100 degrees away) and along a rotating, deforming path."""
+    from fetch_env.viscoelastic import corotation
+
+    scene = build_scene([Piece(shape, 0.012, Material())])
+    d = initial_state(scene)
+    rng = np.random.default_rng(8)
+    prony = PronyRelaxation(scene)
+    prony.reset(d)
+    for k in range(12):
+        _deform(scene, d, rng, 5e-4, 0.15 * k)
+        _, R = prony._corotated(d)
+        x = d.xpos[prony.node_bodies]
+        x -= x.mean(axis=1, keepdims=True)
+        np.testing.assert_allclose(R, corotation(x, prony.grad), rtol=0, atol=1e-8)
