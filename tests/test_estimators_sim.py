@@ -45,9 +45,7 @@ def test_relaxation_g1_tau1_within_3_percent_at_0_02() -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("omega", [
     0.01,
-    pytest.param(0.03, marks=pytest.mark.xfail(strict=True, reason=(
-        "tau1 +4.65 % (g1 -1.07 %) since the Prony stress became a moving rest shape "
-        "(3941ba1); it was +1.92 %; 0.01 / 0.02 / 0.04 rad/s are within 1.6 %"))),
+    0.03,
     0.04,
 ])
 def test_relaxation_g1_tau1_within_3_percent(omega: float) -> None:
