@@ -42,7 +42,7 @@ def bare_loop(sim: FetchSimulator, action: FetchAction, prony: bool = False) -> 
     d = initial_state(scene)
     forces = PronyRelaxation(scene)
     forces.reset(d)  # (the same rest shape as a run starts with)
-    robot_nv = m.nv - sum(3 * m.flex_nodenum[f] for f in scene.piece_flex)
+    robot_nv = scene.robot_nv
     stepping = 0.0
     for i in range(len(hinge)):
         d.ctrl[left] = d.ctrl[right] = hinge[i]

@@ -310,7 +310,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     hinge_dofs = np.array(hinge_v)
     # Sleeping islands (multi-piece scenes, see scene.py): while every piece sleeps only the
     # robot's dofs are awake, the nodes are frozen, and the relaxation and strain can wait.
-    robot_nv = m.nv - sum(3 * m.flex_nodenum[f] for f in scene.piece_flex)
+    robot_nv = scene.robot_nv
     moved = True  # a piece moved since the last strain sample
     wall = time.perf_counter()
     r = 0

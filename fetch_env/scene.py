@@ -130,6 +130,13 @@ class Scene:
     ids: dict[str, int] = field(default_factory=dict)
     piece_flex: list[int] = field(default_factory=list)
 
+    @property
+    def robot_nv(self) -> int:
+        """Degrees of freedom that are not food nodes (the stage and the hinges): while
+        every piece sleeps, ``MjData.nv_awake`` equals this."""
+        m = self.model
+        return int(m.nv - sum(3 * m.flex_nodenum[f] for f in self.piece_flex))
+
     def describe(self) -> dict[str, Any]:
         """A JSON-able description that rebuilds the same scene."""
         return {"pieces": [p.to_dict() for p in self.pieces],

@@ -52,22 +52,6 @@ def _centre_gradients(rest_nodes: np.ndarray) -> np.ndarray:
     return 0.25 * signs[None, :, :] / h[:, None, :]
 
 
-def corotation(x: np.ndarray, grad: np.ndarray) -> np.ndarray:
-    """Rotation of the polar decomposition of F = sum_i x_i (x) dN_i at the centre, (P, 3, 3).
-
-    By SVD: the reference that :class:`PronyRelaxation`'s warm-started MuJoCo routine is
-    tested against.
-    """
-    F = x.transpose(0, 2, 1) @ grad
-    U, _, Vt = np.linalg.svd(F)
-    R = U @ Vt
-    flip = np.linalg.det(R) < 0  # an inverted cell: keep R a proper rotation
-    if np.any(flip):
-        U[flip, :, -1] *= -1
-        R[flip] = U[flip] @ Vt[flip]
-    return R
-
-
 class PronyRelaxation:
     """The Prony relaxation of every piece in a scene, as a moving rest shape.
 

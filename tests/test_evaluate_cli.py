@@ -15,14 +15,9 @@ import pytest
 
 from agents import evaluate as ev
 from agents.cli import main
+from tests.cli_helpers import assert_one_line_error, run_cli
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code = main(argv)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_help_is_clear(capsys: pytest.CaptureFixture[str]) -> None:
@@ -49,15 +44,14 @@ def test_help_is_clear(capsys: pytest.CaptureFixture[str]) -> None:
 ])
 def test_mistakes_are_one_line_and_exit_2(argv: list[str], fragment: str,
                                          capsys: pytest.CaptureFixture[str]) -> None:
-    code, _out, err = _run(["evaluate", *argv], capsys)
-    assert code == 2
+    code, _out, err = run_cli(["evaluate", *argv], capsys)
+    assert_one_line_error(code, err)
     assert fragment in err
-    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
 
 def test_json_contract_and_table(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     js, csv = tmp_path / "e.json", tmp_path / "e.csv"
-    code, out, err = _run(["evaluate", "--agent", "study", "--agent", "model-based",
+    code, out, err = run_cli(["evaluate", "--agent", "study", "--agent", "model-based",
                            "--episodes", "2", "--seed", "3", "--json", str(js), "--csv",
                            str(csv), "--quiet"], capsys)
     assert code == 0, err
@@ -88,7 +82,7 @@ def test_interrupted_evaluation_still_writes(tmp_path: Path, monkeypatch: pytest
 
     monkeypatch.setattr(ev, "run_episode", flaky)
     js = tmp_path / "partial.json"
-    code, out, _ = _run(["evaluate", "--agent", "study", "--episodes", "5", "--json", str(js),
+    code, out, _ = run_cli(["evaluate", "--agent", "study", "--episodes", "5", "--json", str(js),
                          "--quiet"], capsys)
     assert code == 130
     d = json.loads(js.read_text())
@@ -139,7 +133,7 @@ def test_ctrl_c_on_the_real_command_writes_partial_json(tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_plots_and_search_regret(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     js = tmp_path / "e.json"
-    code, _out, err = _run(["evaluate", "--agent", "study", "--agent", "search", "--episodes",
+    code, _out, err = run_cli(["evaluate", "--agent", "study", "--agent", "search", "--episodes",
                            "2", "--json", str(js), "--plots", str(tmp_path / "p"), "--quiet"],
                           capsys)
     assert code == 0, err

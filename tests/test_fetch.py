@@ -190,7 +190,7 @@ def test_untouched_pieces_sleep_and_stay_where_they_rest() -> None:
     model = sim.scene_for("fetch").model
     assert model.opt.enableflags & sleep_bit
     action = FetchAction(theta_d=0.01, hold=0.2, air_hold=0.2)  # a gap left: no touch
-    robot_nv = model.nv - 24 * len(pieces)
+    robot_nv = sim.scene_for("fetch").robot_nv
     asleep: list[bool] = []
     slept = sim.run("fetch", action, observer=lambda d: asleep.append(d.nv_awake == robot_nv))
     model.opt.enableflags &= ~sleep_bit
