@@ -194,8 +194,9 @@ def verdicts(rows: list[dict[str, Any]]) -> dict[str, tuple[str, str]]:
         h, s = (float(np.mean(hard)) if hard else math.nan), (float(np.mean(soft)) if soft
                                                                else math.nan)
         done = [fr(r) for r in g if not math.isnan(fr(r))]  # a diverged mix has no rate
+        diverged = f" ({len(g) - len(done)} diverged)" if len(done) < len(g) else ""
         text = (f"mean fetch rate {np.mean(done) if done else math.nan:.2f} over {len(done)} "
-                f"of {len(g)} mixes (the rest diverged); hard "
+                f"of {len(g)} mixes{diverged}; hard "
                 f"(>= 5 MPa) pieces {h:.2f}, soft pieces {s:.2f}")
         out["diced_mix"] = (text, "agrees" if h < s else "disagrees")
     return out
