@@ -307,7 +307,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     # Views into MjData, fetched once: attribute access costs more than the arithmetic here.
     qpos, qfrc_constraint, ctrl = d.qpos, d.qfrc_constraint, d.ctrl
     bad_qacc_count = d.warning[bad_qacc]
-    hinge_dofs = np.array(hinge_v)
+    dof_left, dof_right = hinge_v
     # Sleeping islands (multi-piece scenes, see scene.py): while every piece sleeps only the
     # robot's dofs are awake, the nodes are frozen, and the relaxation and strain can wait.
     robot_nv = scene.robot_nv
@@ -324,7 +324,10 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     left, right = servos
     try:
         for i in range(n):
-            load += smooth * (float(np.abs(qfrc_constraint[hinge_dofs]).max()) - load)
+            # (scalar reads: a numpy reduction over two values costs more than the step's
+            # whole Python bookkeeping)
+            load += smooth * (max(abs(qfrc_constraint[dof_left]), abs(qfrc_constraint[dof_right]))
+                              - load)
             if stall_cap == np.inf and load > STALL_MOMENT:
                 # A real clamping motor cannot push harder than its stall moment: the blades
                 # stop where they are (stiff pieces are held, not crushed).

@@ -74,13 +74,13 @@ class StrainMeter:
         """LE of every element, shape (E,).
 
         The principal stretches are the square roots of the eigenvalues of C = F^T F, so
-        LE = max |log lambda| = 0.5 max(|log c_min|, |log c_max|).
+        LE = max |log lambda| = 0.5 max(|log c_min|, |log c_max|), which for
+        c_min <= c_max is 0.5 log max(c_max, 1 / c_min) (one log instead of two).
         """
         F = (self.B @ data.flexvert_xpos.ravel()).reshape(-1, 3, 3)
         c_min, c_max = extreme_eigenvalues(F.transpose(0, 2, 1) @ F)
-        log_min = np.log(np.maximum(c_min, 1e-24))
-        log_max = np.log(np.maximum(c_max, 1e-24))
-        return 0.5 * np.maximum(np.abs(log_min), np.abs(log_max))
+        # (a degenerate, crushed element can give c_min <= 0: 1e-24 caps its LE at ~27.6)
+        return 0.5 * np.log(np.maximum(c_max, 1.0 / np.maximum(c_min, 1e-24)))
 
     def piece_strain(self, data: mujoco.MjData) -> np.ndarray:
         """Max LE over each piece's elements, shape (P,)."""
@@ -137,11 +137,10 @@ class BladeOverlap:
         self.inward = np.array([1.0, -1.0])[:, None]  # inner face at local +y (left), -y
 
     def __call__(self, data: mujoco.MjData) -> float:
-        v = data.flexvert_xpos
         # vertices in each blade's frame, (2, V, 3)
-        local = (v[None] - data.geom_xpos[self.geoms][:, None, :]) @ data.geom_xmat[
+        local = (data.flexvert_xpos - data.geom_xpos[self.geoms, None]) @ data.geom_xmat[
             self.geoms].reshape(2, 3, 3)
         half = self.half
         inside = (np.abs(local[..., 0]) <= half[..., 0]) & (np.abs(local[..., 2]) <= half[..., 2])
-        depth = np.where(inside, half[..., 1] - self.inward * local[..., 1], 0.0)
-        return max(0.0, float(depth.max()))
+        depth = half[..., 1] - self.inward * local[..., 1]
+        return float(np.max(depth, where=inside, initial=0.0))

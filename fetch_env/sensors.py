@@ -40,7 +40,13 @@ class ContactSensors:
         self.side_of = np.zeros(m.ngeom + 1, dtype=np.int64)
         self.side_of[blades[0]], self.side_of[blades[1]] = 1, 2
         self.rows = np.arange(3)
-        self.sides = np.array([[1], [2]])
+        # Per contact, its weight in the (left, right) sums, by [its blade's side, side of
+        # its geom[1]]: the contact force acts on geom[1] along +normal, so it is flipped
+        # where the blade is geom[0] (geom[1] is food, side 0), giving the force of the food
+        # on the blade.
+        self._weights = np.zeros((3, 3, 2))
+        self._weights[1, :, 0] = self._weights[2, :, 1] = (-1.0, 1.0, 1.0)
+        self._no_force = np.zeros((2, 3))
         self.out_sign = np.array([[-1.0], [1.0]])  # inner-face outward normal: -y left, +y right
 
     def read(self, d: mujoco.MjData) -> dict[str, np.ndarray]:
@@ -49,27 +55,25 @@ class ContactSensors:
         end-effector [N] (world frame).
         """
         moment = -d.qfrc_constraint[self.hinge_dofs]
-        f_sum = np.zeros((2, 3))
+        f_sum = self._no_force
         nc = d.ncon
         if nc:
             con = d.contact
             geom_side = self.side_of[con.geom[:nc]]  # (c, 2)
-            side = geom_side.sum(axis=1)  # blades never touch each other
+            side = geom_side[:, 0] + geom_side[:, 1]  # blades never touch each other
             adr = con.efc_address[:nc]
-            on = np.flatnonzero((side > 0) & (adr >= 0))
+            on = np.flatnonzero(side * (adr >= 0))
             if on.size:
                 f_local = d.efc_force[adr[on, None] + self.rows]  # (c, 3) in the contact frame
-                frames = con.frame[on].reshape(-1, 3, 3)  # rows: normal, t1, t2
-                f_world = (f_local[:, None, :] @ frames)[:, 0]
-                # The contact force acts on geom[1] along +normal; flip it where the blade is
-                # geom[0], giving the force of the food on the blade.  The weights sum the
-                # contacts of each blade in one product.
-                sign = np.where(geom_side[on, 1] > 0, 1.0, -1.0)
-                f_sum = ((side[on] == self.sides) * sign) @ f_world  # (2, 3)
+                frames = con.frame[on]  # (c, 9): rows normal, t1, t2 of each contact frame
+                weights = self._weights[side[on], geom_side[on, 1]].T  # (2, c)
+                # sum_c w[b, c] f_local[c] @ frame[c] as one (2, 3c) @ (3c, 3) product
+                f_sum = (weights[:, :, None] * f_local).reshape(2, -1) @ frames.reshape(-1, 3)
         # Outward normal of each blade's inner face: the spoon body's y axis, away from the
         # food (-y left, +y right).
-        n_out = d.xmat[self.spoon_bodies][:, 1::3] * self.out_sign  # (2, 3)
+        n_out = d.xmat[self.spoon_bodies, 1::3] * self.out_sign  # (2, 3)
         normal = (f_sum * n_out).sum(axis=1)
-        tangential = np.linalg.norm(f_sum - normal[:, None] * n_out, axis=1)
+        tangential_vec = f_sum - normal[:, None] * n_out
+        tangential = np.sqrt((tangential_vec * tangential_vec).sum(axis=1))
         return {"moment": moment, "normal": normal, "tangential": tangential,
-                "force": f_sum.sum(axis=0)}
+                "force": f_sum[0] + f_sum[1]}

@@ -121,7 +121,9 @@ class PronyRelaxation:
     def _corotated(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         """Corotated displacement from the compiled rest shape (P, 24), and R (P, 3, 3)."""
         x = data.xpos[self.node_bodies]  # (P, 8, 3) world node positions
-        x -= x.mean(axis=1, keepdims=True)  # translation-free; K ignores translation
+        # translation-free (K ignores translation); the mean as np.mean computes it, without
+        # its Python wrapper (this runs every step)
+        x -= np.add.reduce(x, axis=1, keepdims=True) / 8.0
         F = x.transpose(0, 2, 1) @ self.grad  # (P, 3, 3) deformation gradient at the centre
         quat, flat = self._quat, self._R
         for p in range(self.n_pieces):
