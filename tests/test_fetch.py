@@ -216,3 +216,39 @@ def test_closed_form_extreme_eigenvalues_match_lapack() -> None:
     ev = np.linalg.eigvalsh(C)
     np.testing.assert_allclose(lo, ev[:, 0], rtol=0, atol=1e-8)
     np.testing.assert_allclose(hi, ev[:, -1], rtol=0, atol=1e-8)
+
+
+def _rotation_z(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+SHEAR = 0.5  # x += SHEAR * y: principal stretches g/2 + sqrt(1 + g^2/4) and its inverse
+HOMOGENEOUS_DEFORMATIONS = {
+    "uniaxial stretch 1.2": (np.diag([1.2, 1.0, 1.0]), np.log(1.2)),
+    "compression to 0.8 (the squeeze)": (np.diag([1.0, 0.8, 1.0]), -np.log(0.8)),
+    "rigid rotation": (_rotation_z(0.7), 0.0),
+    "rotated stretch 1.1 / 0.9 (the larger |log| wins)":
+        (_rotation_z(0.4) @ np.diag([1.1, 0.9, 1.0]), -np.log(0.9)),
+    "simple shear 0.5": (np.array([[1.0, SHEAR, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]),
+                         np.log(SHEAR / 2 + np.sqrt(1 + SHEAR**2 / 4))),
+}
+
+
+@pytest.mark.parametrize("shape", ["cube", "ellipsoid", "sphere"])
+def test_strain_meter_gives_the_log_strain_of_homogeneous_deformations(shape: str) -> None:
+    """LE per element against the analytic max |log lambda| of a known deformation gradient
+    (every element of a homogeneously deformed piece has the same F)."""
+    from fetch_env.metrics import StrainMeter
+
+    scene = build_scene(single_block(shape))
+    rest = initial_state(scene)
+    meter = StrainMeter(scene, rest)
+    X = np.array(rest.flexvert_xpos)
+    centre = X.mean(axis=0)
+    np.testing.assert_allclose(meter.element_strain(rest), 0.0, atol=1e-12)
+    for name, (F, expected) in HOMOGENEOUS_DEFORMATIONS.items():
+        rest.flexvert_xpos[:] = (X - centre) @ F.T + centre + [0.001, -0.002, 0.003]
+        np.testing.assert_allclose(meter.element_strain(rest), expected, rtol=1e-9, atol=1e-12,
+                                   err_msg=name)
+        np.testing.assert_allclose(meter.piece_strain(rest), [expected], rtol=1e-9, atol=1e-12)
