@@ -95,6 +95,12 @@ class PronyRelaxation:
         self._pending = 0  # steps skipped while every piece slept (see apply)
         self._rest_centred = rest - rest.mean(axis=1, keepdims=True)
         self.rest0 = np.array(m.flex_node0[self.node_adr])  # the compiled rest shape
+        # The per-step reads and writes use slices where the rows are contiguous (a
+        # single piece's node bodies, every scene's flex nodes): a slice is cheaper
+        # than a gather, and the views are fetched once.
+        self._node0 = m.flex_node0
+        self._node_rows = _as_slice(self.node_adr)
+        self._node_xpos = _as_slice(self.node_bodies.ravel())
         self.lagged = np.zeros((self.n_pieces, n_terms, 24))
         # Each piece's rotation as a quaternion, warm-starting MuJoCo's own rotation
         # extraction (mju_mat2Rot: the iterative polar rotation MuJoCo's flexes use); from
@@ -120,10 +126,10 @@ class PronyRelaxation:
 
     def _corotated(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         """Corotated displacement from the compiled rest shape (P, 24), and R (P, 3, 3)."""
-        x = data.xpos[self.node_bodies]  # (P, 8, 3) world node positions
+        xw = data.xpos[self._node_xpos].reshape(self.n_pieces, 8, 3)  # world node positions
         # translation-free (K ignores translation); the mean as np.mean computes it, without
         # its Python wrapper (this runs every step)
-        x -= np.add.reduce(x, axis=1, keepdims=True) / 8.0
+        x = xw - np.add.reduce(xw, axis=1, keepdims=True) / 8.0
         F = x.transpose(0, 2, 1) @ self.grad  # (P, 3, 3) deformation gradient at the centre
         quat, flat = self._quat, self._R
         for p in range(self.n_pieces):
@@ -135,7 +141,7 @@ class PronyRelaxation:
 
     def _move_rest_shape(self) -> None:
         shift = self._g_row @ self.lagged  # (P, 1, 24): sum_k g_k u_k
-        self.model.flex_node0[self.node_adr] = self.rest0 + shift.reshape(-1, 3)
+        self._node0[self._node_rows] = self.rest0 + shift.reshape(-1, 3)
 
     def apply(self, data: mujoco.MjData, asleep: bool = False) -> None:
         """Advance the lagged displacements by one step and move the rest shape.
@@ -171,3 +177,11 @@ class PronyRelaxation:
         _, R = self._corotated(data)
         f_local = -np.einsum("pt,pij,ptj->pi", self.g, self.K, lagged)
         return np.einsum("pia,pba->pib", f_local.reshape(self.n_pieces, 8, 3), R)
+
+
+def _as_slice(index: np.ndarray) -> slice | np.ndarray:
+    """``index`` as a slice when it is a contiguous ascending run, else unchanged."""
+    first = int(index[0])
+    if np.array_equal(index, np.arange(first, first + index.size)):
+        return slice(first, first + index.size)
+    return index
