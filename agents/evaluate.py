@@ -8,12 +8,10 @@ item: ``workers > 1`` runs them in a process pool and gives the same numbers as 
 
 from __future__ import annotations
 
-import contextlib
 import math
 import signal
-import threading
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -154,34 +152,6 @@ def _init_worker() -> None:
         pass
 
 
-@contextlib.contextmanager
-def _ctrl_c_noted() -> Iterator[list[bool]]:
-    """Note every Ctrl-C in a list while raising KeyboardInterrupt as usual.
-
-    Python swallows a KeyboardInterrupt raised inside a finalizer (``__del__``, a weakref
-    callback: it prints "Exception ignored" and goes on), so a Ctrl-C landing there would be
-    lost and the run would go on for all its episodes; the note lets the loop stop before
-    the next episode anyway.  Only the main thread can set signal handlers, and an ignored
-    Ctrl-C stays ignored.
-    """
-    noted: list[bool] = []
-    previous = (signal.getsignal(signal.SIGINT)
-                if threading.current_thread() is threading.main_thread() else None)
-    if previous is None or previous == signal.SIG_IGN:  # (ignored: leave it so)
-        yield noted
-        return
-
-    def on_ctrl_c(signum: int, frame: Any) -> None:
-        noted.append(True)
-        raise KeyboardInterrupt
-
-    signal.signal(signal.SIGINT, on_ctrl_c)
-    try:
-        yield noted
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
 def run_tasks(tasks: Sequence[Task], workers: int = 1,
               on_result: Callable[[dict[str, Any]], None] | None = None) -> list[dict[str, Any]]:
     """Run the tasks (in a pool when ``workers > 1``); results in task order.
@@ -199,14 +169,10 @@ def run_tasks(tasks: Sequence[Task], workers: int = 1,
 
     interrupted: BaseException | None = None
     if workers <= 1:
-        with _ctrl_c_noted() as ctrl_c:
-            try:
-                for i, t in enumerate(tasks):
-                    if ctrl_c:  # a Ctrl-C whose KeyboardInterrupt Python swallowed
-                        raise KeyboardInterrupt
-                    collect([(i, run_episode(t))])
-            except KeyboardInterrupt as exc:
-                interrupted = exc
+        try:
+            collect((i, run_episode(t)) for i, t in enumerate(tasks))
+        except KeyboardInterrupt as exc:
+            interrupted = exc
     else:
         import multiprocessing as mp
 
