@@ -114,13 +114,24 @@ def test_two_workers_give_the_same_episodes_as_one() -> None:
     assert [r["reward"] for r in one] == [r["reward"] for r in two]
 
 
+def _like_a_terminal() -> None:
+    """In the child before exec: Ctrl-C at its default and not blocked, as in a terminal.
+
+    A shell starts a background job (``pytest ... &``, nohup) with SIGINT ignored, and the
+    command under test would inherit that and never see the Ctrl-C (measured: the suite run
+    in the background had SIGINT at SIG_IGN in its xdist workers and this test hung).
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 @pytest.mark.slow
 def test_ctrl_c_on_the_real_command_writes_partial_json(tmp_path: Path) -> None:
     js = tmp_path / "p.json"
     proc = subprocess.Popen(
         [sys.executable, "-m", "agents.cli", "evaluate", "--agent", "study", "--episodes",
          "200", "--json", str(js), "--quiet"], cwd=ROOT, stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE, text=True, env={**os.environ})
+        stderr=subprocess.PIPE, text=True, env={**os.environ}, preexec_fn=_like_a_terminal)
     time.sleep(15)
     proc.send_signal(signal.SIGINT)
     _out, err = proc.communicate(timeout=60)
