@@ -324,8 +324,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     left, right = servos
     try:
         for i in range(n):
-            # (scalar reads: a numpy reduction over two values costs more than the step's
-            # whole Python bookkeeping)
+            # (two scalar reads: cheaper than a numpy reduction over a two-value gather)
             load += smooth * (max(abs(qfrc_constraint[dof_left]), abs(qfrc_constraint[dof_right]))
                               - load)
             if stall_cap == np.inf and load > STALL_MOMENT:
