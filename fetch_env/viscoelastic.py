@@ -112,7 +112,7 @@ class PronyRelaxation:
 
     def restore(self) -> None:
         """Put the compiled rest shape back into the model."""
-        self.model.flex_node0[self.node_adr] = self.rest0
+        self._node0[self._node_rows] = self.rest0
 
     def reset(self, data: mujoco.MjData) -> None:
         """Start relaxed at the current configuration (no stored viscous stress)."""

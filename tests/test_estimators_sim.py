@@ -43,11 +43,7 @@ def test_relaxation_g1_tau1_within_3_percent_at_0_02() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("omega", [
-    0.01,
-    0.03,
-    0.04,
-])
+@pytest.mark.parametrize("omega", [0.01, 0.03, 0.04])
 def test_relaxation_g1_tau1_within_3_percent(omega: float) -> None:
     _relaxation(omega)
 
