@@ -38,6 +38,7 @@ from fetch_env.probes import (
     true_parameters,
 )
 from fetch_env.render import EpisodeRenderer
+from fetch_env.scene import Geometry
 from fetch_env.spaces import (
     ACTION_NAMES,
     ACTION_RANGES,
@@ -184,6 +185,7 @@ _COMMON_DOC = """
     | probe_hold | 3.0 | relaxation probe hold [s]; of the order of tau1 to identify g1, tau1 |
     | probe_omega | 0.1 | relaxation probe's clamping angular velocity [rad/s] |
     | probe_strain | 0.06 | relaxation probe's squeeze past first contact (share of width) |
+    | contact_timeconst | 0.01 | contacts' time constant [s]; 0.002: stiff foods relax truer |
     | render_mode | None | None, "rgb_array", "rgb_array_list" or "human" |
     | width | 480 | frame width [px] |
     | height | 360 | frame height [px] |
@@ -244,6 +246,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         probe_hold: float = 3.0,
         probe_omega: float = 0.1,
         probe_strain: float = 0.06,
+        contact_timeconst: float = 0.01,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -288,6 +291,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         self.air_hold = float(air_hold)
         self.settle = float(settle)
         self.probe_config = ProbeConfig(strain=probe_strain, omega=probe_omega, hold=probe_hold)
+        self.geometry = Geometry(contact_timeconst=contact_timeconst)  # validates it
         self.render_mode = render_mode
         self.width, self.height, self.camera = width, height, camera
 
@@ -411,7 +415,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
 
     # ---------------------------------------------------------------- internals
     def _sim_for(self, pieces: tuple[Piece, ...]) -> FetchSimulator:
-        return self._sims.get_or(pieces, lambda: FetchSimulator(pieces))
+        return self._sims.get_or(pieces, lambda: FetchSimulator(pieces, self.geometry))
 
     def _get_renderer(self) -> EpisodeRenderer:
         if self._renderer is None:
@@ -426,7 +430,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.estimator == "model":
             # Probes depend only on the probed piece (simulated alone) and the config.
             outcome: ProbeOutcome = self._probes.get_or(
-                (pieces[k], self.probe_config), lambda: run_probes(pieces, self.probe_config))
+                (pieces[k], self.probe_config),
+                lambda: run_probes(pieces, self.probe_config, self.geometry))
             est = dict(outcome.estimates)
             flags = {"visco_valid": float(outcome.visco_valid),
                      "friction_valid": float(outcome.friction_valid)}
@@ -530,8 +535,8 @@ class FoodFetchBlockEnv(FoodFetchEnv):
     __doc__ = _docstring(
         "FoodFetch-Block-v0: fetch one soft block.",
         "One piece (cube, ellipsoid or sphere) of a sampled viscoelastic material, the "
-        "study's block experiments; the fastest id (0.75-0.9 episodes a second with the default "
-        "3 s probe hold, 1.4 with probe_hold=0.3).", "block")
+        "study's block experiments; the fastest id (about 1.2 episodes a second on one core with "
+        "the default 3 s probe hold, docs/env_results.md).", "block")
 
     def __init__(self, layout: str = "block", **kwargs: Any) -> None:
         super().__init__(layout=layout, **kwargs)

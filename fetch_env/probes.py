@@ -284,6 +284,7 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
                              settle=config.settle)
         res = sim.run("relaxation", action)
         details["relaxation_action"] = action.to_dict()
+        details["relaxation_geometry"] = res.geometry  # L and theta_0 for the SLS
         details["relaxation_max_log_strain"] = float(res.traces["max_log_strain"].max())
         if keep_traces:
             traces["relaxation"] = res.traces

@@ -58,15 +58,26 @@ class Geometry:
         tip_clearance: blade tip above the plate with the blades vertical (closed) [m].
         gap: clearance between each blade's inner face and the food's outer side at the open
             pose [m]; the faces' offset from the hinge axis is set from it per scene.
+        contact_timeconst: time constant of every contact's constraint [s] (MuJoCo's
+            ``solref``, damping ratio 1).  Not a length, but a property of the blade-food
+            interface the robot sees: MuJoCo's contact is a spring in series with the food
+            whose stiffness grows as ``1 / timeconst**2``.  At the default 10 ms (the least
+            MuJoCo allows at the 5 ms step, twice the step) it is stiff against soft foods
+            but not against stiff ones: a 3.9 MPa, 10 mm sphere's moment relaxes to 0.87
+            of its hold start where the material law gives 0.70.  Below twice the step it
+            is given to MuJoCo as direct stiffness ``1 / tc**2`` and damping ``2 / tc``
+            (the same spring without MuJoCo's safety clamp): 2 ms brings that sphere to
+            0.74 and costs ~40 % more per step (``docs/env_results.md``).
     """
 
     blade_length: float = 0.045
     blade_width: float = 0.048
     tip_clearance: float = 0.001
     gap: float = 0.001
+    contact_timeconst: float = 0.01
 
     def __post_init__(self) -> None:
-        for key in ("blade_length", "blade_width", "tip_clearance", "gap"):
+        for key in ("blade_length", "blade_width", "tip_clearance", "gap", "contact_timeconst"):
             require_finite(key, getattr(self, key))
         require(0.03 <= self.blade_length <= 0.2, "blade_length", self.blade_length,
                 "in [0.03, 0.2] m")
@@ -75,6 +86,8 @@ class Geometry:
         require(0 <= self.tip_clearance <= 0.02, "tip_clearance", self.tip_clearance,
                 "in [0, 0.02] m")
         require(0 <= self.gap <= 0.01, "gap", self.gap, "in [0, 0.01] m")
+        require(0.001 <= self.contact_timeconst <= 0.1, "contact_timeconst",
+                self.contact_timeconst, "in [0.001, 0.1] s")
 
     @property
     def hinge_height(self) -> float:
@@ -204,6 +217,9 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         # different first-contact transient, and a clamp near the slip limit can end
         # differently (measured: a 0.045 rad fetch of the default cube).
         spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    solref = contact_solref(geometry.contact_timeconst, spec.option.timestep)
+    for geom in spec.geoms:
+        geom.solref = solref
     plate = spec.geom("plate")
     plate.friction = [pieces[0].material.plate_mu, 0.005, 0.0001]
 
@@ -227,7 +243,7 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         flex.conaffinity = 7
         flex.condim = 3
         flex.selfcollide = mujoco.mjtFlexSelf.mjFLEXSELF_NONE
-        flex.solref = [0.01, 1.0]
+        flex.solref = solref
         flex.solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
         flex.rgba = _colour(mat.young)
     with warnings.catch_warnings():
@@ -246,6 +262,18 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
     scene.piece_flex = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, f"piece_{i}")
                         for i in range(len(pieces))]
     return scene
+
+
+def contact_solref(timeconst: float, timestep: float) -> list[float]:
+    """MuJoCo ``solref`` for a contact time constant (damping ratio 1).
+
+    MuJoCo clamps a time constant below twice the step to twice the step (its ``refsafe``);
+    there the same spring-damper is given directly, stiffness ``1 / tc**2`` and damping
+    ``2 / tc`` (MuJoCo's own conversion, which direct values bypass the clamp with).
+    """
+    if timeconst >= 2 * timestep:
+        return [timeconst, 1.0]
+    return [-1.0 / timeconst**2, -2.0 / timeconst]
 
 
 def simulated_young(piece: Piece, timestep: float) -> float:

@@ -412,6 +412,8 @@ def test_bad_input_gives_clear_errors() -> None:
         gym.make("FoodFetch-Block-v0", estimator="magic")
     with pytest.raises(InvalidParameterError, match="deformation_weight"):
         gym.make("FoodFetch-Block-v0", deformation_weight=-1.0)
+    with pytest.raises(InvalidParameterError, match=r"contact_timeconst.*1e-05"):
+        gym.make("FoodFetch-Block-v0", contact_timeconst=1e-5)
     env = make()
     with pytest.raises(RuntimeError, match="reset"):
         env.unwrapped.simulate_action(GENTLE)

@@ -91,10 +91,16 @@ def test_tau1_75th_percentile_within_30_percent() -> None:
 
 
 if __name__ == "__main__":  # prints the figures quoted in the report
-    import sys
+    import argparse
 
-    kw = {"probe_hold": float(sys.argv[1])} if len(sys.argv) > 1 else {}
-    for name, e in agreement(**kw).items():
+    parser = argparse.ArgumentParser(description="model / oracle - 1 on 16 Block seeds")
+    parser.add_argument("probe_hold", type=float, nargs="?", default=3.0)
+    parser.add_argument("--first-seed", type=int, default=HELD_BACK.start)
+    parser.add_argument("--contact-timeconst", type=float, default=0.01)
+    args = parser.parse_args()
+    seeds = range(args.first_seed, args.first_seed + 16)
+    for name, e in agreement(seeds=seeds, probe_hold=args.probe_hold,
+                             contact_timeconst=args.contact_timeconst).items():
         ok = np.isfinite(e)
         med = np.median(np.abs(e[ok])) if ok.any() else np.nan
         print(f"{name:5s} identified {ok.mean():4.0%}  median |model/oracle - 1| = {med:.3f}  "

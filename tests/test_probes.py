@@ -15,6 +15,8 @@ from estimators import ClampGeometry, SLSParams, moment_trace, steady_moment
 from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator
 from fetch_env.layouts import single_block
 from fetch_env.materials import Material
+from fetch_env.probes import ProbeConfig, run_probes
+from fetch_env.scene import Geometry
 
 G1, TAU1 = 0.425, 3.667
 THETA_D = 0.0244
@@ -68,3 +70,45 @@ def test_induced_slip_force_ratio_is_coulomb_mu(mu: float) -> None:
     for side in ("left", "right"):
         ratio = tr[f"tangential_{side}"][steady] / tr[f"normal_{side}"][steady]
         np.testing.assert_allclose(ratio.mean(), mu, rtol=0.02)
+
+
+def hold_relaxation(contact_timeconst: float) -> tuple[float, float]:
+    """A stiff sphere's reset probe: measured and SLS-predicted M(end) / M(t_d + 0.1 s).
+
+    The piece is held-back seed 90000's (3.9 MPa, 10.5 mm), where the env's g1 estimate
+    came out low; the reference is 0.1 s into the hold, past the servo's catch-up.
+    """
+    material = Material(young=3.9e6, poisson=0.43, g1=0.416, tau1=2.05, mu=0.51)
+    outcome = run_probes(single_block("sphere", 0.0105, material), ProbeConfig(),
+                         Geometry(contact_timeconst=contact_timeconst), keep_traces=True)
+    tr = outcome.traces["relaxation"]
+    action = outcome.details["relaxation_action"]
+    t = tr["t"] - action["settle"]  # from the clamp start
+    moment = 0.5 * (tr["moment_left"] + tr["moment_right"])
+    clamp = np.flatnonzero(tr["phase"] == PHASE_CODE["clamp"])
+    theta_1 = tr["theta"][clamp][np.argmax(moment[clamp] > 0.01 * moment[clamp].max())]
+    t_ref = action["theta_d"] / action["omega"] + 0.1
+    ref = int(np.argmin(np.abs(t - t_ref)))
+    clamp_geometry = outcome.details["relaxation_geometry"]
+    geom = ClampGeometry(L=clamp_geometry["L"], theta_0=clamp_geometry["theta_0"])
+    params = SLSParams.from_prony(1.0, material.g1, material.tau1)
+    sls = moment_trace(np.array([t[ref], t[-1]]), params, geom, theta_1, action["theta_d"],
+                       action["omega"])
+    return moment[-1] / moment[ref], sls[1] / sls[0]
+
+
+def test_contact_is_a_spring_in_series_with_stiff_foods() -> None:
+    """MuJoCo's contact is a spring (stiffness ~ 1 / timeconst**2) in series with the food.
+
+    Against a soft food it is stiff (the cube tests above); against a 3.9 MPa sphere at the
+    default 10 ms it takes a share of the squeeze, and the moment relaxes far less than the
+    material (measured 0.87 of its hold start where the SLS gives 0.70).  A 2 ms contact
+    brings it within 8 % (measured 0.74).  The env's g1 estimates of stiff round pieces are
+    low by this much (docs/env_results.md).
+    """
+    soft_contact, sls = hold_relaxation(0.01)
+    stiff_contact, sls_again = hold_relaxation(0.002)
+    assert sls == pytest.approx(sls_again, rel=0.02)  # the same clamp both times
+    assert 0.65 < sls < 0.75
+    np.testing.assert_allclose(stiff_contact, sls, rtol=0.08)
+    assert soft_contact > stiff_contact + 0.08
