@@ -185,7 +185,7 @@ _COMMON_DOC = """
     | probe_hold | 3.0 | relaxation probe hold [s]; of the order of tau1 to identify g1, tau1 |
     | probe_omega | 0.1 | relaxation probe's clamping angular velocity [rad/s] |
     | probe_strain | 0.06 | relaxation probe's squeeze past first contact (share of width) |
-    | contact_timeconst | 0.01 | contacts' time constant [s]; 0.002: stiff foods relax truer |
+    | contact_timeconst | 0.01 | contacts' time constant [s] (see Geometry.contact_timeconst) |
     | render_mode | None | None, "rgb_array", "rgb_array_list" or "human" |
     | width | 480 | frame width [px] |
     | height | 360 | frame height [px] |

@@ -63,7 +63,7 @@ class Geometry:
             interface the robot sees: MuJoCo's contact is a spring in series with the food
             whose stiffness grows as ``1 / timeconst**2``.  At the default 10 ms (the least
             MuJoCo allows at the 5 ms step, twice the step) it is stiff against soft foods
-            but not against stiff ones: a 3.9 MPa, 10 mm sphere's moment relaxes to 0.87
+            but not against stiff ones: a 3.9 MPa, 10 mm sphere's moment relaxes to 0.86
             of its hold start where the material law gives 0.70.  Below twice the step it
             is given to MuJoCo as direct stiffness ``1 / tc**2`` and damping ``2 / tc``
             (the same spring without MuJoCo's safety clamp): 2 ms brings that sphere to
