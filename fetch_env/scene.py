@@ -67,7 +67,7 @@ class Geometry:
             of its hold start where the material law gives 0.70.  Below twice the step it
             is given to MuJoCo as direct stiffness ``1 / tc**2`` and damping ``2 / tc``
             (the same spring without MuJoCo's safety clamp): 2 ms brings that sphere to
-            0.74 and costs ~40 % more per step (``docs/env_results.md``).
+            0.74 and costs ~40 % more per probe (``docs/env_results.md``).
     """
 
     blade_length: float = 0.045
