@@ -45,6 +45,7 @@ __all__ = [
     "estimate_full_fit",
     "estimate_three_step",
     "fit_hold_relaxation",
+    "hold_relaxed_fraction",
     "infer_kinematics",
 ]
 
@@ -509,6 +510,59 @@ def estimate_three_step(
     contact = detect_contact(tt, m, kin)
     hf = fit_hold_relaxation(tt, m, kin.t_d)
     return _three_step_from_parts(tt, m, geometry, kin, contact, hf)
+
+
+def hold_relaxed_fraction(
+    t: ArrayLike,
+    M: ArrayLike,
+    geometry: ClampGeometry,
+    theta_1: float,
+    theta_d: float,
+    omega: float,
+    t_d: float,
+    settle: float = 0.0,
+) -> float:
+    """The Prony weight ``g1 = K2 / (K1 + K2)`` from the hold alone, past a settling time.
+
+    Eq. 6 is fitted to the samples after ``t_d + settle`` (its own rate, not a clamp fit's),
+    its relaxing part is carried back to ``t_d`` at that rate, and the study's steps 1 and 3
+    (eq. 7 for ``K1``, the exact clamp solution for ``K2``) turn ``M_inf`` and ``M(t_d)`` into
+    ``K2 / K1``; that divides out the relaxation during the ramp, which a bare
+    ``A / (M_inf + A)`` would miss (by ~``T / 2 tau1`` for a ramp of ``T`` s).  Only the
+    contact angle ``theta_1`` comes from outside the hold (a clamp fit's or the detected one).
+
+    Why: where the clamp rise is not the SLS's (a piece that rocks or chatters as the blades
+    close, the moment still rising after ``t_d`` while it settles), a fit that weights the
+    clamp misplaces ``M(t_d)``; the hold past ``settle`` follows eq. 6 for any SLS.
+
+    Args:
+        t: times, s. M: moment, N m (the hold samples are those after ``t_d + settle``).
+        geometry: clamp geometry. theta_1: contact angle, rad. theta_d: hold angle, rad.
+        omega: clamping velocity, rad/s. t_d: time the clamp reaches ``theta_d``, s.
+        settle: start of the hold left out, s (>= 0).
+
+    Raises:
+        EstimationError: bad traces or settings, too short a hold, or a hold that does not
+            relax (``fit_hold_relaxation``'s ``relaxes`` is False).
+    """
+    tt, traces = check_traces(t, M=M)
+    m = traces["M"]
+    for name, value in (("theta_d", theta_d), ("omega", omega), ("t_d", t_d)):
+        if not math.isfinite(value):
+            raise EstimationError(f"{name} must be finite, got {value!r}")
+    if not (math.isfinite(settle) and settle >= 0.0):
+        raise EstimationError(f"settle must be finite and >= 0 s, got {settle!r}")
+    if not 0.0 <= theta_1 < theta_d:
+        raise EstimationError(f"theta_1={theta_1!r} rad must be in [0, theta_d={theta_d!r})")
+    hf = fit_hold_relaxation(tt, m, t_d + settle)
+    if not hf.relaxes:
+        raise EstimationError("the hold does not relax above the noise: g1 is not identified")
+    kin = ClampKinematics(
+        omega=omega, theta_d=theta_d, t_start=t_d - theta_d / omega, t_d=t_d, theta_noise=0.0
+    )
+    a_d = hf.A * math.exp(hf.lam * settle)
+    K1, K2, _ = _three_step_core(hf, geometry, theta_1, kin, a=a_d)
+    return K2 / (K1 + K2)
 
 
 def _never_relaxes_estimate(

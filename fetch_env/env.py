@@ -114,19 +114,20 @@ _COMMON_DOC = """
     |---|---|---|---|---|
 {obs_table}
 
-    ``estimator="model"``: K1, K2, B, g1, tau1 from ``estimators.estimate_full_fit`` (falling
-    back to ``estimate_three_step``) on the moment of a reset probe (clamp at ``probe_omega``
-    to ``probe_strain`` past first contact, hold ``probe_hold``), mu from an induced-slip
-    probe (``estimators.estimate_friction``, or the upper envelope of the force ratio when
-    the blades stick-slip; ``fetch_env.probes``); a failed estimate gives 0 and a cleared
-    flag. ``"oracle"``: the true values (g1, tau1, mu of the material exactly; K1, K2, B
-    nominal, ``K = 2 E A / l`` split by g1, see ``fetch_env.probes.nominal_stiffness``).
-    ``"none"``: zeros, flags 0 (the ablation).
+    ``estimator="model"``: K1, tau1 from ``estimators.estimate_full_fit`` (falling back to
+    ``estimate_three_step``), g1 from the hold alone (``estimators.hold_relaxed_fraction``,
+    past ``probes.G1_SETTLE``; K2 and B follow from K1, g1, tau1), on the moment of a reset
+    probe (clamp at ``probe_omega`` to ``probe_strain`` past first contact, hold
+    ``probe_hold``), mu from an induced-slip probe (``estimators.estimate_friction``, or the
+    upper envelope of the force ratio when the blades stick-slip; ``fetch_env.probes``); a
+    failed estimate gives 0 and a cleared flag. ``"oracle"``: the true values (g1, tau1, mu
+    of the material exactly; K1, K2, B nominal, ``K = 2 E A / l`` split by g1, see
+    ``fetch_env.probes.nominal_stiffness``). ``"none"``: zeros, flags 0 (the ablation).
     The hold must be of the order of tau1 (1 to 6 s) to separate g1 from tau1: the default
-    ``probe_hold=3`` identifies them (median error about 8 % on held-back Block scenes) and
-    costs about 60 % of a Block episode; ``probe_hold=0.3`` makes the probes about a third
-    of the episode and still gives mu (median 0.2 %), but g1 and tau1 only coarsely or not
-    at all (measured trade-off in ``docs/env_results.md``).
+    ``probe_hold=3`` identifies them (median error about 6 % for g1 and 13 % for tau1 on 64
+    held-back Block scenes) and costs about 55 % of a Block episode; ``probe_hold=0.3`` makes
+    the probes about a third of the episode and still gives mu (median 0.5 %), but g1 and
+    tau1 only coarsely or not at all (measured trade-off in ``docs/env_results.md``).
 
     ## Rewards
     ``reward = reward_fetch + reward_deformation + reward_time`` (each in ``info``):

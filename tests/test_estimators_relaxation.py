@@ -12,6 +12,7 @@ from estimators.relaxation import (
     estimate_full_fit,
     estimate_three_step,
     fit_hold_relaxation,
+    hold_relaxed_fraction,
     infer_kinematics,
 )
 from estimators.sls import ClampGeometry, SLSParams, clamp_angle, moment_trace
@@ -98,6 +99,67 @@ def test_hold_fit_recovers_eq6() -> None:
     assert hf.relaxes
     assert_allclose(hf.lam, 1.0 / 3.667, rtol=1e-8)
     assert hf.r2 > 0.999999
+
+
+@pytest.mark.parametrize(("omega", "theta_d", "tau1"), [(0.1, 0.045, 3.667), (0.01, 0.05, 1.5)])
+def test_hold_relaxed_fraction_is_exact_on_the_sls(omega, theta_d, tau1) -> None:
+    """g1 from the hold alone, with the clamp's own relaxation divided out: exact on an SLS
+    trace, where the bare A / (M_inf + A) is not (by ~T / 2 tau1 for a ramp of T s)."""
+    params = SLSParams.from_prony(2000.0, 0.425, tau1)
+    t, _, m = make_trace(omega, theta_d, 3.0, params=params)
+    t_d = theta_d / omega
+    g1 = hold_relaxed_fraction(t, m, GEOM, THETA_1, theta_d, omega, t_d, settle=0.25)
+    assert_allclose(g1, 0.425, rtol=1e-6)
+    hf = fit_hold_relaxation(t, m, t_d)
+    bare = hf.A / (hf.M_inf + hf.A)
+    ramp = (theta_d - THETA_1) / omega
+    assert abs(bare / 0.425 - 1) > 0.2 * ramp / (2 * tau1)  # the correction matters
+
+
+def test_hold_relaxed_fraction_ignores_a_disturbed_clamp() -> None:
+    """A clamp that does not rise as an SLS (a piece rocking as the blades close, then settling
+    into the clamp with a fast extra decay early in the hold), fitted as the env's probe does
+    (the first 0.1 s of the hold left out, clamp weight 0.3): the full fit's g1 is off, the
+    hold's past 0.25 s is not."""
+    omega, theta_d = 0.1, 0.045
+    t, theta, m = make_trace(omega, theta_d, 3.0)
+    t_d = theta_d / omega
+    clamp = (t > THETA_1 / omega) & (t <= t_d)
+    hold = t > t_d
+    m_bad = m.copy()
+    m_bad[clamp] *= np.random.default_rng(7).uniform(0.3, 1.0, clamp.sum())
+    m_bad[hold] += 0.2 * m.max() * np.exp(-(t[hold] - t_d) / 0.03)
+    keep = ~((t > t_d) & (t < t_d + 0.1))
+    fit = estimate_full_fit(t[keep], theta[keep], m_bad[keep], GEOM, omega=omega,
+                            theta_d=theta_d, clamp_weight=0.3)
+    assert abs(fit.g1 / 0.425 - 1) > 0.05, fit.g1  # the disturbance misleads the fit ...
+    g1 = hold_relaxed_fraction(t, m_bad, GEOM, fit.theta_1, theta_d, omega, t_d, settle=0.25)
+    assert_allclose(g1, 0.425, rtol=0.01)  # ... not the hold (theta_1 is the fit's)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"settle": -0.1}, "settle"),
+        ({"settle": float("nan")}, "settle"),
+        ({"theta_1": 0.05}, "theta_1"),
+        ({"t_d": float("inf")}, "t_d"),
+        ({"settle": 2.95}, "hold"),
+    ],
+)
+def test_hold_relaxed_fraction_rejects_bad_input(kwargs, match) -> None:
+    t, _, m = make_trace(0.1, 0.045, 3.0)
+    args = {"theta_1": THETA_1, "theta_d": 0.045, "omega": 0.1, "t_d": 0.45, "settle": 0.25}
+    args.update(kwargs)
+    with pytest.raises(EstimationError, match=match):
+        hold_relaxed_fraction(t, m, GEOM, **args)
+
+
+def test_hold_relaxed_fraction_needs_a_relaxing_hold() -> None:
+    params = SLSParams(K1=2000.0, K2=1e-9, B=1e-9)  # elastic: nothing relaxes
+    t, _, m = make_trace(0.1, 0.045, 3.0, params=params)
+    with pytest.raises(EstimationError, match="does not relax"):
+        hold_relaxed_fraction(t, m, GEOM, THETA_1, 0.045, 0.1, 0.45, settle=0.25)
 
 
 def _noisy_trials(omega, theta_d, hold, n_trials, noise=0.01):
