@@ -547,9 +547,11 @@ def hold_relaxed_fraction(
     """
     tt, traces = check_traces(t, M=M)
     m = traces["M"]
-    for name, value in (("theta_d", theta_d), ("omega", omega), ("t_d", t_d)):
-        if not math.isfinite(value):
-            raise EstimationError(f"{name} must be finite, got {value!r}")
+    for name, value in (("theta_d", theta_d), ("omega", omega)):
+        if not (math.isfinite(value) and value > 0.0):
+            raise EstimationError(f"{name} must be finite and > 0, got {value!r}")
+    if not math.isfinite(t_d):
+        raise EstimationError(f"t_d must be finite, got {t_d!r}")
     if not (math.isfinite(settle) and settle >= 0.0):
         raise EstimationError(f"settle must be finite and >= 0 s, got {settle!r}")
     if not 0.0 <= theta_1 < theta_d:
@@ -562,7 +564,7 @@ def hold_relaxed_fraction(
     )
     a_d = hf.A * math.exp(hf.lam * settle)
     K1, K2, _ = _three_step_core(hf, geometry, theta_1, kin, a=a_d)
-    return K2 / (K1 + K2)
+    return float(K2 / (K1 + K2))
 
 
 def _never_relaxes_estimate(

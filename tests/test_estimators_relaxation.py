@@ -144,6 +144,8 @@ def test_hold_relaxed_fraction_ignores_a_disturbed_clamp() -> None:
         ({"settle": float("nan")}, "settle"),
         ({"theta_1": 0.05}, "theta_1"),
         ({"t_d": float("inf")}, "t_d"),
+        ({"omega": 0.0}, "omega"),
+        ({"theta_d": -0.01}, "theta_d"),
         ({"settle": 2.95}, "hold"),
     ],
 )
