@@ -343,7 +343,8 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
                 rec["t"][r] = d.time
                 rec["phase"][r] = profile.phase[i]
                 rec["theta"][r] = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]]) - q_open
-                rec["theta_cmd"][r] = profile.theta[min(i + 1, n - 1)]
+                # what the motor is told: the profile, held at the angle it stalled at
+                rec["theta_cmd"][r] = min(profile.theta[min(i + 1, n - 1)], stall_cap - q_open)
                 rec["lift"][r] = qpos[lift_q]
                 reading = sensors.read(d)
                 rec["moment_left"][r], rec["moment_right"][r] = reading["moment"]

@@ -198,7 +198,10 @@ def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str
     """
     tr = result.traces
     t0 = float(result.extra.get("t_clamp_start", 0.0))
-    t_d = t0 + result.action.theta_d / result.action.omega
+    # A stiff piece can stall the motor before theta_d: the clamp then ends where it stalled.
+    stalled = result.extra.get("stalled_at")
+    theta_d = result.action.theta_d if stalled is None else min(result.action.theta_d, stalled)
+    t_d = t0 + theta_d / result.action.omega
     sel = (tr["t"] >= t0) & np.isin(tr["phase"], [PHASE_CODE["clamp"], PHASE_CODE["hold"]])
     # The first HOLD_SKIP of the hold is the servo and the contact catching up with the
     # command (the moment still rises for ~50 ms); eq. 6 holds after it, so leave it out.
@@ -208,7 +211,7 @@ def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str
     # than the estimators' plateau tolerance (the hold is then not found on spheres), and a
     # position-controlled motor knows its command.
     args = (tr["t"][sel] - t0, tr["theta_cmd"][sel], _mean_moment(tr)[sel], geom)
-    kw = {"omega": result.action.omega, "theta_d": result.action.theta_d}
+    kw = {"omega": result.action.omega, "theta_d": theta_d}
     errors: list[str] = []
     for method, extra in ((estimate_full_fit, {"clamp_weight": CLAMP_WEIGHT}),
                           (estimate_three_step, {})):

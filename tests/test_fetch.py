@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator
+from fetch_env.controller import PHASE_CODE, STALL_MOMENT, FetchAction, FetchSimulator
 from fetch_env.errors import InvalidParameterError
 from fetch_env.layouts import Piece, single_block
 from fetch_env.materials import Material
@@ -44,6 +44,24 @@ def test_commanded_angle_is_the_real_angle(fetch_result) -> None:
     err = np.abs(tr["theta"] - tr["theta_cmd"])
     assert err.max() < 2e-4  # rad, anywhere (the ramp's corners: one 5 ms servo transient)
     assert np.percentile(err, 99) < 5e-5  # rad, under the clamping load
+
+
+def test_the_motor_stalls_at_its_stall_moment_and_holds_there() -> None:
+    """A 20 MPa cube clamped to 0.06 rad: the motor cannot push past STALL_MOMENT, so the
+    blades stop where the (20 ms low-passed) load first exceeds it, the command and the hinge
+    hold that angle, and the held moment stays at the stall moment (measured: mean 2.12 N m,
+    the angle reached while the load filter catches up)."""
+    r = FetchSimulator(single_block(material=Material(young=2e7))).run(
+        "fetch", FetchAction(theta_d=0.06, hold=0.5))
+    stalled = r.extra["stalled_at"]
+    assert stalled is not None and stalled < 0.045, stalled
+    tr = r.traces
+    hold = tr["phase"] == PHASE_CODE["hold"]
+    np.testing.assert_allclose(tr["theta_cmd"][hold], stalled, atol=1e-12)
+    np.testing.assert_allclose(tr["theta"][hold], stalled, atol=1e-4)
+    moment = np.maximum(tr["moment_left"], tr["moment_right"])[hold]
+    assert STALL_MOMENT <= moment.mean() < 1.1 * STALL_MOMENT, moment.mean()
+    assert r.fetch_rate == 1.0
 
 
 def test_gap_left_means_no_fetch() -> None:
