@@ -318,7 +318,9 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     # The controller's end stop: the blades never close past CLOSED_MARGIN before their faces
     # meet at the tips (a rigid joint limit there pinched small hard pieces with unbounded
     # force; this way the 2 N m motor is the only thing squeezing).
-    ctrl_hinge = np.minimum(ctrl_hinge, q_open + scene.pose.theta_closed - CLOSED_MARGIN)
+    end_stop = scene.pose.theta_closed - CLOSED_MARGIN
+    ctrl_hinge = np.minimum(ctrl_hinge, q_open + end_stop)
+    theta_told = np.minimum(profile.theta, end_stop)  # the angle the motor is told, unstalled
     load = 0.0  # the motor's load moment, low-passed over STALL_TIME (contact impulses pass)
     smooth = 1.0 - math.exp(-dt / STALL_TIME)
     left, right = servos
@@ -343,8 +345,8 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
                 rec["t"][r] = d.time
                 rec["phase"][r] = profile.phase[i]
                 rec["theta"][r] = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]]) - q_open
-                # what the motor is told: the profile, held at the angle it stalled at
-                rec["theta_cmd"][r] = min(profile.theta[min(i + 1, n - 1)], stall_cap - q_open)
+                # what the motor is told: the profile within the end stop, held where it stalled
+                rec["theta_cmd"][r] = min(theta_told[min(i + 1, n - 1)], stall_cap - q_open)
                 rec["lift"][r] = qpos[lift_q]
                 reading = sensors.read(d)
                 rec["moment_left"][r], rec["moment_right"][r] = reading["moment"]

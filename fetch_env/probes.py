@@ -198,9 +198,8 @@ def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str
     """
     tr = result.traces
     t0 = float(result.extra.get("t_clamp_start", 0.0))
-    # A stiff piece can stall the motor before theta_d: the clamp then ends where it stalled.
-    stalled = result.extra.get("stalled_at")
-    theta_d = result.action.theta_d if stalled is None else min(result.action.theta_d, stalled)
+    # The hold angle the motor was told: theta_d, or where a stiff piece stalled it.
+    theta_d = float(tr["theta_cmd"].max())
     t_d = t0 + theta_d / result.action.omega
     sel = (tr["t"] >= t0) & np.isin(tr["phase"], [PHASE_CODE["clamp"], PHASE_CODE["hold"]])
     # The first HOLD_SKIP of the hold is the servo and the contact catching up with the
@@ -210,7 +209,8 @@ def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str
     # The commanded angle, not the measured one: the servo sags by ~1e-5 rad under load, more
     # than the estimators' plateau tolerance (the hold is then not found on spheres), and a
     # position-controlled motor knows its command.
-    args = (tr["t"][sel] - t0, tr["theta_cmd"][sel], _mean_moment(tr)[sel], geom)
+    t, moment = tr["t"][sel] - t0, _mean_moment(tr)[sel]
+    args = (t, tr["theta_cmd"][sel], moment, geom)
     kw = {"omega": result.action.omega, "theta_d": theta_d}
     errors: list[str] = []
     for method, extra in ((estimate_full_fit, {"clamp_weight": CLAMP_WEIGHT}),
@@ -221,17 +221,15 @@ def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str
             # ArithmeticError: estimate_full_fit can overflow in math.exp on wild fits.
             errors.append(f"{method.__name__}: {type(exc).__name__}: {exc}")
             continue
-        vals = {"K1": est.K1, "K2": est.K2, "B": est.B, "g1": est.g1, "tau1": est.tau1}
-        if all(np.isfinite(v) and v > 0 for v in vals.values()):
-            vals, warns = _with_hold_g1(vals, est, args, G1_SETTLE)
+        if all(np.isfinite(v) and v > 0 for v in (est.K1, est.K2, est.B, est.g1, est.tau1)):
+            vals, warns = _with_hold_g1(est, t, moment, geom)
             return vals, [*errors, *est.warnings, *warns]
         errors.append(f"{method.__name__}: not identified ({'; '.join(est.warnings)})")
     raise EstimationError("; ".join(errors))
 
 
-def _with_hold_g1(vals: dict[str, float], est: ViscoelasticEstimate,
-                  args: tuple[np.ndarray, np.ndarray, np.ndarray, ClampGeometry],
-                  settle: float) -> tuple[dict[str, float], list[str]]:
+def _with_hold_g1(est: ViscoelasticEstimate, t: np.ndarray, moment: np.ndarray,
+                  geom: ClampGeometry) -> tuple[dict[str, float], list[str]]:
     """The estimate with g1 from the hold alone (:func:`estimators.hold_relaxed_fraction`),
     keeping the fit's K1 and tau1 (so K2 = K1 g1 / (1 - g1), B = tau1 K2).
 
@@ -243,10 +241,10 @@ def _with_hold_g1(vals: dict[str, float], est: ViscoelasticEstimate,
     75th percentile 31 % against 25 %).  Falls back to the fit's g1, with a warning, if the
     hold does not give one.
     """
-    t, _, moment, geom = args
+    vals = {"K1": est.K1, "K2": est.K2, "B": est.B, "g1": est.g1, "tau1": est.tau1}
     try:
         g1 = hold_relaxed_fraction(t, moment, geom, est.theta_1, est.theta_d, est.omega,
-                                   est.t_d, settle=settle)
+                                   est.t_d, settle=G1_SETTLE)
     except (EstimationError, ArithmeticError) as exc:
         return vals, [f"g1 from the fit, not the hold: {exc}"]
     if not 0.0 < g1 < 1.0:
