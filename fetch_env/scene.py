@@ -33,6 +33,7 @@ MESH_COUNT = {"cube": 3, "ellipsoid": 4, "sphere": 4}
 # modulus instead (reported per piece as ``young_simulated``): still > 40x stiffer than the
 # soft foods and held by a motor that stalls at 2 N m, they deform < 1 % in any clamp.
 CONDITIONING_LIMIT = 1e4
+MIN_CONTACT_TIMECONST = 0.001  # [s] the stiffest contact Geometry allows (stable at the 5 ms step)
 BLADE_HALF_THICKNESS = 0.002  # [m] thick enough that no food vertex can reach the far side
 
 # MuJoCo's process-wide asset cache makes the compiled flex stiffness and node masses depend,
@@ -86,8 +87,8 @@ class Geometry:
         require(0 <= self.tip_clearance <= 0.02, "tip_clearance", self.tip_clearance,
                 "in [0, 0.02] m")
         require(0 <= self.gap <= 0.01, "gap", self.gap, "in [0, 0.01] m")
-        require(0.001 <= self.contact_timeconst <= 0.1, "contact_timeconst",
-                self.contact_timeconst, "in [0.001, 0.1] s")
+        require(MIN_CONTACT_TIMECONST <= self.contact_timeconst <= 0.1, "contact_timeconst",
+                self.contact_timeconst, f"in [{MIN_CONTACT_TIMECONST}, 0.1] s")
 
     @property
     def hinge_height(self) -> float:
