@@ -124,8 +124,8 @@ _COMMON_DOC = """
     of the material exactly; K1, K2, B nominal, ``K = 2 E A / l`` split by g1, see
     ``fetch_env.probes.nominal_stiffness``). ``"none"``: zeros, flags 0 (the ablation).
     The hold must be of the order of tau1 (1 to 6 s) to separate g1 from tau1: the default
-    ``probe_hold=3`` identifies them (median error about 6 % for g1 and 13 % for tau1 on 64
-    held-back Block scenes) and costs about 55 % of a Block episode; ``probe_hold=0.3`` makes
+    ``probe_hold=3`` identifies them (median error about 2 % for g1 and 11 % for tau1 on 64
+    held-back Block scenes) and costs about 55-65 % of a Block episode; ``probe_hold=0.3`` makes
     the probes about a third of the episode and still gives mu (median 0.5 %), but g1 and
     tau1 only coarsely or not at all (measured trade-off in ``docs/env_results.md``).
 

@@ -25,8 +25,10 @@ Accuracy against time (measured on held-back sampled Block scenes, see
 ``docs/env_results.md`` and ``tests/test_env_slow.py``): the hold must be of the order of
 tau_1 (1 to 6 s) for g_1 and tau_1 to be identified: over a hold h << tau_1 the decay is
 linear to within (h / tau_1)^2 / 2 and only the ratio g_1 / tau_1 shows.  The default 3 s
-hold gives g_1 to a median of ~6 % and tau_1 of ~13 % (64 held-back scenes); mu does not
-depend on it (median 0.5 %).
+hold gives g_1 to a median of ~2 % and tau_1 of ~11 % (64 held-back scenes; ~6 % and ~13 %
+before the relaxation experiment's contact was stiffened with the food, see
+:func:`fetch_env.controller.relaxation_contact_timeconst`); mu does not depend on it (median
+0.5 %).
 With the servos no longer saturating, a fast slip clamp (0.4 rad/s) is stable and saves
 ~0.2 s; the relaxation clamp stays at 0.1 rad/s (0.2 and 0.4 identified g_1 less often).
 
