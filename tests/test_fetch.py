@@ -152,8 +152,8 @@ def test_bit_identical_twice_in_one_process_and_across_processes() -> None:
 
 
 def test_sensor_readout_equals_a_contact_by_contact_sum() -> None:
-    """The vectorized readout (moment from the hinges' constraint force, forces from one
-    gather) against an independent loop over mj_contactForce with lever arms."""
+    """The readout (moment from the hinges' constraint force, forces from MuJoCo's netforce
+    contact sensors) against an independent loop over mj_contactForce with lever arms."""
     import mujoco
 
     from fetch_env.sensors import ContactSensors
