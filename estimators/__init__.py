@@ -10,8 +10,8 @@ Modules (units: s, rad, m, N, N m; see PAPER.md for eqs. 1-7):
 * :mod:`estimators.relaxation` -- ``K1, K2, B`` from one clamp-and-hold:
   :func:`estimate_three_step` (the study's method) and :func:`estimate_full_fit` (one least-squares
   fit of the whole trace with 95 % intervals); both return :class:`ViscoelasticEstimate`.
-  :func:`hold_relaxed_fraction` gives ``g1`` from the hold alone, for clamps that do not rise
-  as an SLS would.
+  :func:`estimate_from_hold` gives them (and ``g1, tau1``) from the hold alone, for clamps
+  that do not rise as an SLS would.
 * :mod:`estimators.friction` -- ``mu`` by induced slippage: :func:`estimate_friction`.
 * :mod:`estimators.errors` -- :class:`EstimationError` (a ``ValueError``) for unusable input.
 """
@@ -19,10 +19,11 @@ Modules (units: s, rad, m, N, N m; see PAPER.md for eqs. 1-7):
 from estimators.errors import EstimationError
 from estimators.friction import FrictionEstimate, estimate_friction
 from estimators.relaxation import (
+    HoldEstimate,
     ViscoelasticEstimate,
+    estimate_from_hold,
     estimate_full_fit,
     estimate_three_step,
-    hold_relaxed_fraction,
 )
 from estimators.sls import ClampGeometry, SLSParams, moment_trace, steady_moment
 
@@ -30,12 +31,13 @@ __all__ = [
     "ClampGeometry",
     "EstimationError",
     "FrictionEstimate",
+    "HoldEstimate",
     "SLSParams",
     "ViscoelasticEstimate",
     "estimate_friction",
+    "estimate_from_hold",
     "estimate_full_fit",
     "estimate_three_step",
-    "hold_relaxed_fraction",
     "moment_trace",
     "steady_moment",
 ]

@@ -39,13 +39,14 @@ from estimators.sls import (
 __all__ = [
     "ClampKinematics",
     "ContactDetection",
+    "HoldEstimate",
     "HoldFit",
     "ViscoelasticEstimate",
     "detect_contact",
+    "estimate_from_hold",
     "estimate_full_fit",
     "estimate_three_step",
     "fit_hold_relaxation",
-    "hold_relaxed_fraction",
     "infer_kinematics",
 ]
 
@@ -512,7 +513,25 @@ def estimate_three_step(
     return _three_step_from_parts(tt, m, geometry, kin, contact, hf)
 
 
-def hold_relaxed_fraction(
+@dataclass(frozen=True)
+class HoldEstimate:
+    """SLS parameters from the hold alone (see :func:`estimate_from_hold`).
+
+    Attributes:
+        K1, K2: springs, N/m. B: dashpot, N s/m. g1: Prony weight ``K2/(K1+K2)``.
+        tau1: Prony time ``B/K2`` (the hold's own decay time), s.
+        fit: the eq. 6 fit to the hold past ``settle`` it comes from.
+    """
+
+    K1: float
+    K2: float
+    B: float
+    g1: float
+    tau1: float
+    fit: HoldFit
+
+
+def estimate_from_hold(
     t: ArrayLike,
     M: ArrayLike,
     geometry: ClampGeometry,
@@ -521,19 +540,20 @@ def hold_relaxed_fraction(
     omega: float,
     t_d: float,
     settle: float = 0.0,
-) -> float:
-    """The Prony weight ``g1 = K2 / (K1 + K2)`` from the hold alone, past a settling time.
+) -> HoldEstimate:
+    """``K1, K2, B`` (and ``g1, tau1``) from the hold alone, past a settling time.
 
-    Eq. 6 is fitted to the samples after ``t_d + settle`` (its own rate, not a clamp fit's),
-    its relaxing part is carried back to ``t_d`` at that rate, and the study's steps 1 and 3
-    (eq. 7 for ``K1``, the exact clamp solution for ``K2``) turn ``M_inf`` and ``M(t_d)`` into
-    ``K2 / K1``; that divides out the relaxation during the ramp, which a bare
-    ``A / (M_inf + A)`` would miss (by ~``T / 2 tau1`` for a ramp of ``T`` s).  Only the
-    contact angle ``theta_1`` comes from outside the hold (a clamp fit's or the detected one).
+    Eq. 6 is fitted to the samples after ``t_d + settle``: its rate is ``1 / tau1`` for any SLS
+    held at a constant angle.  Its relaxing part is carried back to ``t_d`` at that rate, and the
+    study's steps 1 and 3 (eq. 7 for ``K1``, the exact clamp solution for ``K2``) turn ``M_inf``
+    and ``M(t_d)`` into the springs; that divides out the relaxation during the ramp, which a
+    bare ``g1 = A / (M_inf + A)`` would miss (by ~``T / 2 tau1`` for a ramp of ``T`` s).  Only
+    the contact angle ``theta_1`` comes from outside the hold (a clamp fit's or the detected
+    one).
 
     Why: where the clamp rise is not the SLS's (a piece that rocks or chatters as the blades
     close, the moment still rising after ``t_d`` while it settles), a fit that weights the
-    clamp misplaces ``M(t_d)``; the hold past ``settle`` follows eq. 6 for any SLS.
+    clamp misplaces ``M(t_d)`` and the decay; the hold past ``settle`` follows eq. 6 for any SLS.
 
     Args:
         t: times, s. M: moment, N m (the hold samples are those after ``t_d + settle``).
@@ -558,13 +578,15 @@ def hold_relaxed_fraction(
         raise EstimationError(f"theta_1={theta_1!r} rad must be in [0, theta_d={theta_d!r})")
     hf = fit_hold_relaxation(tt, m, t_d + settle)
     if not hf.relaxes:
-        raise EstimationError("the hold does not relax above the noise: g1 is not identified")
+        raise EstimationError(
+            "the hold does not relax above the noise: g1 and tau1 are not identified"
+        )
     kin = ClampKinematics(
         omega=omega, theta_d=theta_d, t_start=t_d - theta_d / omega, t_d=t_d, theta_noise=0.0
     )
     a_d = hf.A * math.exp(hf.lam * settle)
-    K1, K2, _ = _three_step_core(hf, geometry, theta_1, kin, a=a_d)
-    return float(K2 / (K1 + K2))
+    K1, K2, B = _three_step_core(hf, geometry, theta_1, kin, a=a_d)
+    return HoldEstimate(K1=K1, K2=K2, B=B, g1=K2 / (K1 + K2), tau1=1.0 / hf.lam, fit=hf)
 
 
 def _never_relaxes_estimate(

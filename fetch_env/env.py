@@ -114,9 +114,9 @@ _COMMON_DOC = """
     |---|---|---|---|---|
 {obs_table}
 
-    ``estimator="model"``: K1, tau1 from ``estimators.estimate_full_fit`` (falling back to
-    ``estimate_three_step``), g1 from the hold alone (``estimators.hold_relaxed_fraction``,
-    past ``probes.G1_SETTLE``; K2 and B follow from K1, g1, tau1), on the moment of a reset
+    ``estimator="model"``: K1 from ``estimators.estimate_full_fit`` (falling back to
+    ``estimate_three_step``), g1 and tau1 from the hold alone (``estimators.estimate_from_hold``,
+    past ``probes.HOLD_SETTLE``; K2 and B follow from K1, g1, tau1), on the moment of a reset
     probe (clamp at ``probe_omega`` to ``probe_strain`` past first contact, hold
     ``probe_hold``), mu from an induced-slip probe (``estimators.estimate_friction``, or the
     upper envelope of the force ratio when the blades stick-slip; ``fetch_env.probes``); a
@@ -124,7 +124,7 @@ _COMMON_DOC = """
     of the material exactly; K1, K2, B nominal, ``K = 2 E A / l`` split by g1, see
     ``fetch_env.probes.nominal_stiffness``). ``"none"``: zeros, flags 0 (the ablation).
     The hold must be of the order of tau1 (1 to 6 s) to separate g1 from tau1: the default
-    ``probe_hold=3`` identifies them (median error about 2 % for g1 and 11 % for tau1 on 64
+    ``probe_hold=3`` identifies them (median error about 2 % for g1 and 6 % for tau1 on 64
     held-back Block scenes) and costs about 55-65 % of a Block episode; ``probe_hold=0.3`` makes
     the probes about a third of the episode and still gives mu (median 0.5 %), but g1 and
     tau1 only coarsely or not at all (measured trade-off in ``docs/env_results.md``).

@@ -6,9 +6,9 @@ clamp first) with two short experiments on the simulated sensors:
 * a gentle clamp and a hold (the ``relaxation`` experiment: the blades start
   ``RELAXATION_GAP`` = 0.1 mm from the food) whose moment trace (mean of both blades, clamp
   and hold samples, t from the clamp start) feeds :func:`estimators.estimate_full_fit`
-  (falling back to the study's three-step method), giving K1 and tau_1 = B / K2, and
-  :func:`estimators.hold_relaxed_fraction` (the hold alone, past ``G1_SETTLE``), giving
-  g_1 = K2 / (K1 + K2); K2 and B follow;
+  (falling back to the study's three-step method), giving K1, and
+  :func:`estimators.estimate_from_hold` (the hold alone, past ``HOLD_SETTLE``), giving
+  g_1 = K2 / (K1 + K2) and tau_1 = B / K2; K2 and B follow;
 * an induced slip (the ``slip`` experiment, a short fast slide) whose contact forces feed
   :func:`estimators.estimate_friction` and the upper envelope of the force ratio (Coulomb
   bounds the ratio by mu; a stick-slipping slide reaches it only while slipping), giving mu.
@@ -25,10 +25,10 @@ Accuracy against time (measured on held-back sampled Block scenes, see
 ``docs/env_results.md`` and ``tests/test_env_slow.py``): the hold must be of the order of
 tau_1 (1 to 6 s) for g_1 and tau_1 to be identified: over a hold h << tau_1 the decay is
 linear to within (h / tau_1)^2 / 2 and only the ratio g_1 / tau_1 shows.  The default 3 s
-hold gives g_1 to a median of ~2 % and tau_1 of ~11 % (64 held-back scenes; ~6 % and ~13 %
-before the relaxation experiment's contact was stiffened with the food, see
-:func:`fetch_env.controller.relaxation_contact_timeconst`); mu does not depend on it (median
-0.5 %).
+hold gives g_1 to a median of ~2 % and tau_1 of ~6 % (64 held-back scenes; ~6 % and ~13 %
+before session 9 stiffened the relaxation experiment's contact with the food, see
+:func:`fetch_env.controller.relaxation_contact_timeconst`, and took tau_1 from the hold); mu
+does not depend on it (median 0.5 %).
 With the servos no longer saturating, a fast slip clamp (0.4 rad/s) is stable and saves
 ~0.2 s; the relaxation clamp stays at 0.1 rad/s (0.2 and 0.4 identified g_1 less often).
 
@@ -51,9 +51,9 @@ from estimators import (
     EstimationError,
     ViscoelasticEstimate,
     estimate_friction,
+    estimate_from_hold,
     estimate_full_fit,
     estimate_three_step,
-    hold_relaxed_fraction,
 )
 from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator, SimResult
 from fetch_env.errors import SimulationDivergedError
@@ -62,11 +62,13 @@ from fetch_env.scene import Geometry, Scene, initial_state
 
 PARAM_NAMES: tuple[str, ...] = ("K1", "K2", "B", "mu", "g1", "tau1")
 HOLD_SKIP = 0.1  # [s] start of the relaxation hold left out of the fit (servo catching up)
-# [s] start of the hold left out of g1's hold-only fit: a round piece that rocks as the blades
-# close is still settling into the clamp (its moment rising, then falling faster than the
-# material relaxes) up to ~0.25 s after t_d.  On seeds 5000-5063, 0.2 / 0.25 / 0.3 s gave
-# g1 median errors of 6.1 / 5.5 / 5.3 % and 75th percentiles of 12.8 / 12.3 / 13.1 %.
-G1_SETTLE = 0.25
+# [s] start of the hold left out of the hold-only fit of g1 and tau1: a round piece that rocks
+# as the blades close is still settling into the clamp (its moment rising, then falling faster
+# than the material relaxes) up to ~0.25 s after t_d.  On seeds 5000-5063, 0.2 / 0.25 / 0.3 s
+# gave g1 median errors of 6.1 / 5.5 / 5.3 % and 75th percentiles of 12.8 / 12.3 / 13.1 %
+# (session 8); for tau1 on seeds 5000-5127 (session 9), 0.1 / 0.25 / 0.5 / 0.75 s gave
+# medians of 6.5 / 5.9 / 6.0 / 7.2 % and 75th percentiles of 13.2 / 11.6 / 11.8 / 15.3 %.
+HOLD_SETTLE = 0.25
 CLAMP_WEIGHT = 0.3  # full fit: clamp residuals against the hold (docs/estimators_results.md)
 ENVELOPE_QUANTILE = 0.95  # slip probe: quantile of |F_t| / F_n taken as mu
 
@@ -194,14 +196,17 @@ def _mean_moment(tr: dict[str, np.ndarray]) -> np.ndarray:
 
 
 def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str]]:
-    """K1, K2, B, g1, tau1 from a relaxation run (full fit, else three-step; g1 from the hold).
+    """K1, K2, B, g1, tau1 from a relaxation run (K1 from the full fit, else three-step; g1 and
+    tau1 from the hold).
 
     Raises :class:`EstimationError` when neither method can use the trace.
     """
     tr = result.traces
     t0 = float(result.extra.get("t_clamp_start", 0.0))
-    # The hold angle the motor was told: theta_d, or where a stiff piece stalled it.
-    theta_d = float(tr["theta_cmd"].max())
+    # The hold angle the motor was told (the run ends in the hold): theta_d, or where a stiff
+    # piece stalled it, which can be a little below the command it stalled on (the angle the
+    # blades had reached, not the largest command).
+    theta_d = float(tr["theta_cmd"][-1])
     t_d = t0 + theta_d / result.action.omega
     sel = (tr["t"] >= t0) & np.isin(tr["phase"], [PHASE_CODE["clamp"], PHASE_CODE["hold"]])
     # The first HOLD_SKIP of the hold is the servo and the contact catching up with the
@@ -224,35 +229,37 @@ def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str
             errors.append(f"{method.__name__}: {type(exc).__name__}: {exc}")
             continue
         if all(np.isfinite(v) and v > 0 for v in (est.K1, est.K2, est.B, est.g1, est.tau1)):
-            vals, warns = _with_hold_g1(est, t, moment, geom)
+            vals, warns = _with_hold_prony(est, t, moment, geom)
             return vals, [*errors, *est.warnings, *warns]
         errors.append(f"{method.__name__}: not identified ({'; '.join(est.warnings)})")
     raise EstimationError("; ".join(errors))
 
 
-def _with_hold_g1(est: ViscoelasticEstimate, t: np.ndarray, moment: np.ndarray,
-                  geom: ClampGeometry) -> tuple[dict[str, float], list[str]]:
-    """The estimate with g1 from the hold alone (:func:`estimators.hold_relaxed_fraction`),
-    keeping the fit's K1 and tau1 (so K2 = K1 g1 / (1 - g1), B = tau1 K2).
+def _with_hold_prony(est: ViscoelasticEstimate, t: np.ndarray, moment: np.ndarray,
+                     geom: ClampGeometry) -> tuple[dict[str, float], list[str]]:
+    """The estimate with g1 and tau1 from the hold alone (:func:`estimators.estimate_from_hold`,
+    past ``HOLD_SETTLE``), keeping the fit's K1 (so K2 = K1 g1 / (1 - g1), B = tau1 K2).
 
     Why: the full fit weights the clamp, whose rise is not the SLS's where a piece rocks or
-    chatters as the blades close (round pieces, stiff ones against the contact's compliance),
-    and it then misplaces M(t_d) and g1.  On 64 sampled Block scenes (seeds 5000-5063; the
-    held-back ones untouched) this took g1's median error from 10.0 % to 5.5 % and its 75th
-    percentile from 19.6 % to 12.3 %; tau1 stays the full fit's (the hold's own rate was worse:
-    75th percentile 31 % against 25 %).  Falls back to the fit's g1, with a warning, if the
-    hold does not give one.
+    chatters as the blades close, and it then misplaces M(t_d), g1 and tau1.  g1 came from the
+    hold since session 8 (seeds 5000-5063: median error 10.0 -> 5.5 %); tau1 since session 9,
+    once the relaxation contact was stiffened with the food (before it, the hold's own rate was
+    worse than the fit's: 75th percentile 31 % against 25 %).  On seeds 5000-5127 (the
+    held-back ones untouched) the hold's tau1 gave a median error of 5.9 % and a 95th
+    percentile of 32 % against the fit's 7.5 % and 51 %.  Falls back to the fit's g1 and
+    tau1, with a warning, if the hold does not give them.
     """
     vals = {"K1": est.K1, "K2": est.K2, "B": est.B, "g1": est.g1, "tau1": est.tau1}
     try:
-        g1 = hold_relaxed_fraction(t, moment, geom, est.theta_1, est.theta_d, est.omega,
-                                   est.t_d, settle=G1_SETTLE)
+        hold = estimate_from_hold(t, moment, geom, est.theta_1, est.theta_d, est.omega, est.t_d,
+                                  settle=HOLD_SETTLE)
     except (EstimationError, ArithmeticError) as exc:
-        return vals, [f"g1 from the fit, not the hold: {exc}"]
-    if not 0.0 < g1 < 1.0:
-        return vals, [f"g1 from the fit, not the hold (the hold gives {g1!r})"]
-    k2 = vals["K1"] * g1 / (1.0 - g1)
-    return {**vals, "K2": k2, "B": vals["tau1"] * k2, "g1": g1}, []
+        return vals, [f"g1 and tau1 from the fit, not the hold: {exc}"]
+    if not (0.0 < hold.g1 < 1.0 and 0.0 < hold.tau1 < math.inf):
+        return vals, [f"g1 and tau1 from the fit, not the hold (the hold gives g1={hold.g1!r}, "
+                      f"tau1={hold.tau1!r})"]
+    k2 = vals["K1"] * hold.g1 / (1.0 - hold.g1)
+    return {**vals, "K2": k2, "B": hold.tau1 * k2, "g1": hold.g1, "tau1": hold.tau1}, []
 
 
 def estimate_mu(result: SimResult) -> tuple[float, list[str]]:

@@ -43,22 +43,23 @@ def _summary(e: np.ndarray) -> tuple[float, float, float]:
     return float(ok.mean()), float(np.median(np.abs(e[ok]))), float(np.abs(e[ok]).max())
 
 
-# Measured on HELD_BACK (64 sampled Block scenes), default probes (probe_hold 3 s), g1 from
-# the hold alone (probes.G1_SETTLE) and the relaxation probe's contact stiffened with the food
-# (controller.relaxation_contact_timeconst, session 9), relative error |model / oracle - 1|:
+# Measured on HELD_BACK (64 sampled Block scenes), default probes (probe_hold 3 s), g1 and tau1
+# from the hold alone (probes.HOLD_SETTLE) and the relaxation probe's contact stiffened with
+# the food (controller.relaxation_contact_timeconst), both session 9; relative error
+# |model / oracle - 1|:
 #   mu:   identified 64 of 64; median 0.5 %, 75th percentile 1.4 %, 95th 9.5 % (max 18 %: a
 #         soft piece that stick-slips); 88 % of scenes within 4 %.
-#   g1:   identified 63 of 64; median 2.3 %, 75th percentile 4.1 %, 95th 12 %.
-#   tau1: identified 63 of 64; median 10.8 %, 75th percentile 18.6 % (max 6x: one scene).
-#   K1, K2, B against the nominal stiffness: std of log(model / oracle) 0.52 / 0.52 / 0.41.
-# Before the stiffened contact (session 8): g1 6.2 % / 13.4 % / 23 %, tau1 13.1 % / 28.2 %,
-# K 0.53 / 0.57 / 0.46; before g1 came from the hold (04b99fa): g1 11.2 % / 21.6 %.  The first
-# 16 of these scenes (the set until session 8) gave tau1 12.3 % / 30.2 % then.  The bars: mu's
-# as set on the 16, its "max" read as the 95th percentile (the largest of 16 samples
-# estimates about that quantile, the largest of 64 about the 98th); g1's and tau1's 75th
-# percentile tightened to the stiffened contact's figures with about 2x / 1.3x room, so that
-# losing it fails.  probe_hold=0.3 (the fast probes): mu as above; g1 / tau1 identified on
-# < 50 % (docs/env_results.md).
+#   g1:   identified 64 of 64; median 2.3 %, 75th percentile 4.0 %, 95th 12 %.
+#   tau1: identified 64 of 64; median 6.0 %, 75th percentile 11.8 %, 95th 33 % (max 50 %).
+#   K1, K2, B against the nominal stiffness: std of log(model / oracle) 0.52 / 0.52 / 0.55.
+# Session 8 (10 ms contact, tau1 from the full fit): g1 6.2 / 13.4 / 23 %, tau1 13.1 / 28.2 /
+# 54 %, 63 of 64 identified; with the stiffened contact alone: g1 2.3 / 4.1 / 12 %, tau1 10.8 /
+# 18.6 / 54 %.  Before g1 came from the hold (04b99fa): g1 11.2 % / 21.6 %.  The bars: mu's as
+# set on the first 16 scenes, its "max" read as the 95th percentile (the largest of 16
+# samples estimates about that quantile, the largest of 64 about the 98th); g1's and tau1's
+# tightened to session 9's figures with about 2x / 1.7x room, so that losing either change
+# fails.  probe_hold=0.3 (the fast probes): mu as above; g1 / tau1 identified on < 50 %
+# (docs/env_results.md).
 
 
 def _p75(e: np.ndarray) -> float:
@@ -81,8 +82,8 @@ def test_default_probe_estimates_agree_with_the_oracle_on_held_back_seeds() -> N
     # confinement): a common factor is allowed; the scatter about it is the shapes' contact.
     # Measured std of log(model/oracle): K1 0.28, K2 0.57, B 0.63 on the first 16 scenes
     # (g1 from the full fit), 0.53 / 0.57 / 0.46 on the 64 (B carries g1's and tau1's errors
-    # too: one seed's tau1 1.7x gives it 4.3x), 0.52 / 0.52 / 0.41 with the stiffened
-    # relaxation contact (one scene's tau1 6x); the bar 0.7 was set on the 16.
+    # too: one seed's tau1 1.7x gives it 4.3x), 0.52 / 0.52 / 0.55 with session 9's probes;
+    # the bar 0.7 was set on the 16.
     for k in ("K1", "K2", "B"):
         ratio = 1.0 + errs[k][np.isfinite(errs[k])]
         assert np.std(np.log(ratio)) < 0.7, f"{k} ratios {ratio}"
@@ -94,22 +95,23 @@ def test_mu_within_4_percent_on_most_held_back_seeds() -> None:
     assert np.mean(np.abs(errs["mu"]) < 0.04) >= 0.85, f"mu: {errs['mu']}"
 
 
-# tau1's bars: median 13 % (the estimators' accuracy on simulated traces), 75th percentile
-# 25 %.  The hold is short of the slowest foods' tau1 (up to 6 s against a 3 s hold) and the
-# full fit is misled where the clamp does not rise as an SLS (round pieces rocking as the
-# blades close), so tau1's errors stay wider than g1's.  With the relaxation contact at the
-# default 10 ms for every food, MuJoCo's contact was a spring in series with stiff pieces and
-# the median sat at 13.1 % (a strict xfail until session 9) and the 75th percentile at 28 %.
+# tau1's bars: median 10 %, 75th percentile 20 % (the estimators issue's 13 % median, measured
+# on simulated traces, with room to spare).  The hold is short of the slowest foods' tau1 (up
+# to 6 s against a 3 s hold), and a stiff cube's held contact chatters, so tau1's errors stay
+# wider than g1's.  Until session 9 tau1 came from the full fit, misled where the clamp does
+# not rise as an SLS (round pieces rocking as the blades close), and MuJoCo's 10 ms contact
+# was a spring in series with stiff pieces: the median sat at 13.1 % (a strict xfail on a
+# 13 % bar) and the 75th percentile at 28 %.
 @pytest.mark.slow
-def test_tau1_median_within_13_percent() -> None:
+def test_tau1_median_within_10_percent() -> None:
     errs = agreement()
-    assert _summary(errs["tau1"])[1] < 0.13, f"tau1: {errs['tau1']}"
+    assert _summary(errs["tau1"])[1] < 0.10, f"tau1: {errs['tau1']}"
 
 
 @pytest.mark.slow
-def test_tau1_75th_percentile_within_25_percent() -> None:
+def test_tau1_75th_percentile_within_20_percent() -> None:
     errs = agreement()
-    assert _p75(errs["tau1"]) < 0.25, f"tau1: {errs['tau1']}"
+    assert _p75(errs["tau1"]) < 0.2, f"tau1: {errs['tau1']}"
 
 
 if __name__ == "__main__":  # prints the figures quoted in the report

@@ -9,10 +9,10 @@ from numpy.testing import assert_allclose
 from estimators.errors import EstimationError
 from estimators.relaxation import (
     detect_contact,
+    estimate_from_hold,
     estimate_full_fit,
     estimate_three_step,
     fit_hold_relaxation,
-    hold_relaxed_fraction,
     infer_kinematics,
 )
 from estimators.sls import ClampGeometry, SLSParams, clamp_angle, moment_trace
@@ -102,25 +102,28 @@ def test_hold_fit_recovers_eq6() -> None:
 
 
 @pytest.mark.parametrize(("omega", "theta_d", "tau1"), [(0.1, 0.045, 3.667), (0.01, 0.05, 1.5)])
-def test_hold_relaxed_fraction_is_exact_on_the_sls(omega, theta_d, tau1) -> None:
-    """g1 from the hold alone, with the clamp's own relaxation divided out: exact on an SLS
-    trace, where the bare A / (M_inf + A) is not (by ~T / 2 tau1 for a ramp of T s)."""
+def test_estimate_from_hold_is_exact_on_the_sls(omega, theta_d, tau1) -> None:
+    """K1, K2, B, g1, tau1 from the hold alone, with the clamp's own relaxation divided out:
+    exact on an SLS trace, where the bare g1 = A / (M_inf + A) is not (by ~T / 2 tau1 for a
+    ramp of T s)."""
     params = SLSParams.from_prony(2000.0, 0.425, tau1)
     t, _, m = make_trace(omega, theta_d, 3.0, params=params)
     t_d = theta_d / omega
-    g1 = hold_relaxed_fraction(t, m, GEOM, THETA_1, theta_d, omega, t_d, settle=0.25)
-    assert_allclose(g1, 0.425, rtol=1e-6)
+    est = estimate_from_hold(t, m, GEOM, THETA_1, theta_d, omega, t_d, settle=0.25)
+    assert_allclose([est.K1, est.K2, est.B], [params.K1, params.K2, params.B], rtol=1e-6)
+    assert_allclose([est.g1, est.tau1], [0.425, tau1], rtol=1e-6)
+    assert est.fit.relaxes and est.fit.duration == pytest.approx(3.0 - 0.25, abs=0.02)
     hf = fit_hold_relaxation(t, m, t_d)
     bare = hf.A / (hf.M_inf + hf.A)
     ramp = (theta_d - THETA_1) / omega
     assert abs(bare / 0.425 - 1) > 0.2 * ramp / (2 * tau1)  # the correction matters
 
 
-def test_hold_relaxed_fraction_ignores_a_disturbed_clamp() -> None:
+def test_estimate_from_hold_ignores_a_disturbed_clamp() -> None:
     """A clamp that does not rise as an SLS (a piece rocking as the blades close, then settling
     into the clamp with a fast extra decay early in the hold), fitted as the env's probe does
-    (the first 0.1 s of the hold left out, clamp weight 0.3): the full fit's g1 is off, the
-    hold's past 0.25 s is not."""
+    (the first 0.1 s of the hold left out, clamp weight 0.3): the full fit's g1 and tau1 are
+    off, the hold's past 0.25 s are not."""
     omega, theta_d = 0.1, 0.045
     t, theta, m = make_trace(omega, theta_d, 3.0)
     t_d = theta_d / omega
@@ -133,8 +136,9 @@ def test_hold_relaxed_fraction_ignores_a_disturbed_clamp() -> None:
     fit = estimate_full_fit(t[keep], theta[keep], m_bad[keep], GEOM, omega=omega,
                             theta_d=theta_d, clamp_weight=0.3)
     assert abs(fit.g1 / 0.425 - 1) > 0.05, fit.g1  # the disturbance misleads the fit ...
-    g1 = hold_relaxed_fraction(t, m_bad, GEOM, fit.theta_1, theta_d, omega, t_d, settle=0.25)
-    assert_allclose(g1, 0.425, rtol=0.01)  # ... not the hold (theta_1 is the fit's)
+    assert abs(fit.tau1 / 3.667 - 1) > 0.05, fit.tau1
+    est = estimate_from_hold(t, m_bad, GEOM, fit.theta_1, theta_d, omega, t_d, settle=0.25)
+    assert_allclose([est.g1, est.tau1], [0.425, 3.667], rtol=0.01)  # ... not the hold
 
 
 @pytest.mark.parametrize(
@@ -149,19 +153,19 @@ def test_hold_relaxed_fraction_ignores_a_disturbed_clamp() -> None:
         ({"settle": 2.95}, "hold"),
     ],
 )
-def test_hold_relaxed_fraction_rejects_bad_input(kwargs, match) -> None:
+def test_estimate_from_hold_rejects_bad_input(kwargs, match) -> None:
     t, _, m = make_trace(0.1, 0.045, 3.0)
     args = {"theta_1": THETA_1, "theta_d": 0.045, "omega": 0.1, "t_d": 0.45, "settle": 0.25}
     args.update(kwargs)
     with pytest.raises(EstimationError, match=match):
-        hold_relaxed_fraction(t, m, GEOM, **args)
+        estimate_from_hold(t, m, GEOM, **args)
 
 
-def test_hold_relaxed_fraction_needs_a_relaxing_hold() -> None:
+def test_estimate_from_hold_needs_a_relaxing_hold() -> None:
     params = SLSParams(K1=2000.0, K2=1e-9, B=1e-9)  # elastic: nothing relaxes
     t, _, m = make_trace(0.1, 0.045, 3.0, params=params)
     with pytest.raises(EstimationError, match="does not relax"):
-        hold_relaxed_fraction(t, m, GEOM, THETA_1, 0.045, 0.1, 0.45, settle=0.25)
+        estimate_from_hold(t, m, GEOM, THETA_1, 0.045, 0.1, 0.45, settle=0.25)
 
 
 def _noisy_trials(omega, theta_d, hold, n_trials, noise=0.01):
