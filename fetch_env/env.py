@@ -114,9 +114,9 @@ _COMMON_DOC = """
     |---|---|---|---|---|
 {obs_table}
 
-    ``estimator="model"``: K1 from ``estimators.estimate_full_fit`` (falling back to
-    ``estimate_three_step``), g1 and tau1 from the hold alone (``estimators.estimate_from_hold``,
-    past ``probes.HOLD_SETTLE``; K2 and B follow from K1, g1, tau1), on the moment of a reset
+    ``estimator="model"``: K1, K2, B, g1, tau1 from the hold alone
+    (``estimators.estimate_from_hold``, past ``probes.HOLD_SETTLE``, with the contact angle of
+    ``estimators.estimate_full_fit``, or of ``estimate_three_step``), on the moment of a reset
     probe (clamp at ``probe_omega`` to ``probe_strain`` past first contact, hold
     ``probe_hold``), mu from an induced-slip probe (``estimators.estimate_friction``, or the
     upper envelope of the force ratio when the blades stick-slip; ``fetch_env.probes``); a
