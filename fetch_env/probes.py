@@ -231,7 +231,7 @@ def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str
             continue
         if all(np.isfinite(v) and v > 0 for v in (est.K1, est.K2, est.B, est.g1, est.tau1)):
             vals, warns = _from_the_hold(est, t, moment, geom)
-            return vals, [*errors, *est.warnings, *warns]
+            return vals, [*errors, *warns]
         errors.append(f"{method.__name__}: not identified ({'; '.join(est.warnings)})")
     raise EstimationError("; ".join(errors))
 
@@ -239,8 +239,9 @@ def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str
 def _from_the_hold(est: ViscoelasticEstimate, t: np.ndarray, moment: np.ndarray,
                    geom: ClampGeometry) -> tuple[dict[str, float], list[str]]:
     """K1, K2, B, g1, tau1 from the hold alone (:func:`estimators.estimate_from_hold`, past
-    ``HOLD_SETTLE``), with the contact angle and t_d of the full fit ``est``; the fit's own
-    values, with a warning, where the hold gives none.
+    ``HOLD_SETTLE``), with the contact angle and t_d of the full fit ``est``, and the warnings
+    that go with them; the fit's own values and warnings, plus a warning, where the hold gives
+    none.
 
     Why: the full fit weights the clamp, whose rise is not the SLS's where a piece rocks or
     chatters as the blades close, and it then misplaces M(t_d), g1 and tau1.  g1 came from
@@ -259,8 +260,9 @@ def _from_the_hold(est: ViscoelasticEstimate, t: np.ndarray, moment: np.ndarray,
     else:
         why = f"it gives g1={hold.g1!r}, tau1={hold.tau1!r}"
     if hold is None or not (0.0 < hold.g1 < 1.0 and 0.0 < hold.tau1 < math.inf):
+        # (the fit's own warnings matter only where its values are used)
         return ({"K1": est.K1, "K2": est.K2, "B": est.B, "g1": est.g1, "tau1": est.tau1},
-                [f"the parameters are the full fit's, not the hold's: {why}"])
+                [*est.warnings, f"the parameters are the fit's, not the hold's: {why}"])
     return {"K1": hold.K1, "K2": hold.K2, "B": hold.B, "g1": hold.g1, "tau1": hold.tau1}, []
 
 

@@ -22,7 +22,7 @@ from fetch_env.controller import (
 from fetch_env.layouts import single_block
 from fetch_env.materials import Material
 from fetch_env.probes import ProbeConfig, run_probes
-from fetch_env.scene import Geometry
+from fetch_env.scene import MIN_CONTACT_TIMECONST, Geometry
 
 G1, TAU1 = 0.425, 3.667
 THETA_D = 0.0244
@@ -119,6 +119,8 @@ def test_contact_is_a_spring_in_series_with_stiff_foods(monkeypatch: pytest.Monk
     assert relaxation_contact_timeconst(STIFF_SPHERE, Geometry()) == pytest.approx(0.0019,
                                                                                    abs=2e-4)
     assert relaxation_contact_timeconst(single_block(), Geometry()) == 0.01  # 0.2 MPa cube
+    hard_die = single_block("cube", 0.007, Material(young=2e8))
+    assert relaxation_contact_timeconst(hard_die, Geometry()) == MIN_CONTACT_TIMECONST
     stiff_contact, sls = hold_relaxation()
     assert 0.65 < sls < 0.75
     np.testing.assert_allclose(stiff_contact, sls, rtol=0.08)
