@@ -49,6 +49,7 @@ import numpy as np
 from estimators import (
     ClampGeometry,
     EstimationError,
+    HoldEstimate,
     ViscoelasticEstimate,
     estimate_friction,
     estimate_from_hold,
@@ -59,6 +60,7 @@ from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator, SimRes
 from fetch_env.errors import SimulationDivergedError
 from fetch_env.layouts import Piece
 from fetch_env.scene import Geometry, Scene, initial_state
+from fetch_env.spaces import VISCO_NAMES
 
 PARAM_NAMES: tuple[str, ...] = ("K1", "K2", "B", "mu", "g1", "tau1")
 HOLD_SKIP = 0.1  # [s] start of the relaxation hold left out of the fit (servo catching up)
@@ -229,7 +231,7 @@ def estimate_viscoelastic(result: SimResult) -> tuple[dict[str, float], list[str
             # ArithmeticError: estimate_full_fit can overflow in math.exp on wild fits.
             errors.append(f"{method.__name__}: {type(exc).__name__}: {exc}")
             continue
-        if all(np.isfinite(v) and v > 0 for v in (est.K1, est.K2, est.B, est.g1, est.tau1)):
+        if all(np.isfinite(v) and v > 0 for v in _visco_values(est).values()):
             vals, warns = _from_the_hold(est, t, moment, geom)
             return vals, [*errors, *warns]
         errors.append(f"{method.__name__}: not identified ({'; '.join(est.warnings)})")
@@ -261,9 +263,14 @@ def _from_the_hold(est: ViscoelasticEstimate, t: np.ndarray, moment: np.ndarray,
         why = f"it gives g1={hold.g1!r}, tau1={hold.tau1!r}"
     if hold is None or not (0.0 < hold.g1 < 1.0 and 0.0 < hold.tau1 < math.inf):
         # (the fit's own warnings matter only where its values are used)
-        return ({"K1": est.K1, "K2": est.K2, "B": est.B, "g1": est.g1, "tau1": est.tau1},
+        return (_visco_values(est),
                 [*est.warnings, f"the parameters are the fit's, not the hold's: {why}"])
-    return {"K1": hold.K1, "K2": hold.K2, "B": hold.B, "g1": hold.g1, "tau1": hold.tau1}, []
+    return _visco_values(hold), []
+
+
+def _visco_values(est: ViscoelasticEstimate | HoldEstimate) -> dict[str, float]:
+    """K1, K2, B, g1, tau1 of an estimate, by name."""
+    return {name: float(getattr(est, name)) for name in VISCO_NAMES}
 
 
 def estimate_mu(result: SimResult) -> tuple[float, list[str]]:

@@ -67,8 +67,10 @@ class Geometry:
             but not against stiff ones: a 3.9 MPa, 10 mm sphere's moment relaxes to 0.86
             of its hold start where the material law gives 0.70.  Below twice the step it
             is given to MuJoCo as direct stiffness ``1 / tc**2`` and damping ``2 / tc``
-            (the same spring without MuJoCo's safety clamp): 2 ms brings that sphere to
-            0.74 and costs ~40 % more per probe (``docs/env_results.md``).
+            (the same spring without MuJoCo's safety clamp).  The relaxation experiment
+            stiffens it further with the food
+            (:func:`fetch_env.controller.relaxation_contact_timeconst`: 1.9 ms for that
+            sphere, which then relaxes to 0.74); the fetch and the slip use this value.
     """
 
     blade_length: float = 0.045
