@@ -499,9 +499,9 @@ def test_record_video_writes_a_video(tmp_path) -> None:
     _renderable()
     pytest.importorskip("moviepy")
     env = gym.wrappers.RecordVideo(make(render_mode="rgb_array_list", width=160, height=120),
-                                   str(tmp_path), episode_trigger=lambda _: True)
+                                   str(tmp_path / "videos"), episode_trigger=lambda _: True)
     env.reset(seed=0)
     env.step(GENTLE)
     env.close()
-    videos = list(tmp_path.glob("*.mp4"))
+    videos = list((tmp_path / "videos").glob("*.mp4"))
     assert len(videos) == 1 and videos[0].stat().st_size > 1000
