@@ -536,8 +536,9 @@ class FoodFetchBlockEnv(FoodFetchEnv):
     __doc__ = _docstring(
         "FoodFetch-Block-v0: fetch one soft block.",
         "One piece (cube, ellipsoid or sphere) of a sampled viscoelastic material, the "
-        "study's block experiments; the fastest id (about 1.2 episodes a second on one core with "
-        "the default 3 s probe hold, docs/env_results.md).", "block")
+        "study's block experiments; the fastest id (about 1 episode a second on one core with "
+        "the default 3 s probe hold: 0.99-1.28 on the project's 2-core VM, docs/env_results.md).",
+        "block")
 
     def __init__(self, layout: str = "block", **kwargs: Any) -> None:
         super().__init__(layout=layout, **kwargs)

@@ -62,12 +62,13 @@ class Geometry:
         contact_timeconst: time constant of every contact's constraint [s] (MuJoCo's
             ``solref``, damping ratio 1).  Not a length, but a property of the blade-food
             interface the robot sees: MuJoCo's contact is a spring in series with the food
-            whose stiffness grows as ``1 / timeconst**2``.  At the default 10 ms (the least
-            MuJoCo allows at the 5 ms step, twice the step) it is stiff against soft foods
+            whose stiffness grows as ``1 / timeconst**2``.  At the default 10 ms (twice the 5 ms
+            step, the least a positive ``solref`` is safe at) it is stiff against soft foods
             but not against stiff ones: a 3.9 MPa, 10 mm sphere's moment relaxes to 0.86
             of its hold start where the material law gives 0.70.  Below twice the step it
             is given to MuJoCo as direct stiffness ``1 / tc**2`` and damping ``2 / tc``
-            (the same spring without MuJoCo's safety clamp).  The relaxation experiment
+            (the same spring, which MuJoCo's ``refsafe`` leaves as authored; see
+            :func:`contact_solref`).  The relaxation experiment
             stiffens it further with the food
             (:func:`fetch_env.controller.relaxation_contact_timeconst`: 1.9 ms for that
             sphere, which then relaxes to 0.74); the fetch and the slip use this value.
@@ -270,9 +271,14 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
 def contact_solref(timeconst: float, timestep: float) -> list[float]:
     """MuJoCo ``solref`` for a contact time constant (damping ratio 1).
 
-    MuJoCo clamps a time constant below twice the step to twice the step (its ``refsafe``);
-    there the same spring-damper is given directly, stiffness ``1 / tc**2`` and damping
-    ``2 / tc`` (MuJoCo's own conversion, which direct values bypass the clamp with).
+    MuJoCo's ``refsafe`` does not honour a time constant the step cannot resolve (under the
+    standard integrators below twice the step; under ``discrete``, ours, a contact row with
+    ``timeconst * dampratio`` below the step is replaced by the stiffest zero-restitution row
+    for the step); below twice the step the same spring-damper is therefore given directly,
+    stiffness ``1 / tc**2`` and damping ``2 / tc`` (MuJoCo's own conversion), which
+    ``refsafe`` leaves as authored (measured: identical probe estimates with it disabled).
+    Even so, the contact's compliance under ``discrete`` grows with the step
+    (``docs/env_results.md``, "Session 10").
     """
     if timeconst >= 2 * timestep:
         return [timeconst, 1.0]
