@@ -104,6 +104,39 @@ class FetchAction:
         return dataclasses.asdict(self)
 
 
+@dataclass(frozen=True)
+class TimeScale:
+    """Quasi-static time scaling of the relaxation hold (the env's probes use it).
+
+    Past the hold's first ``realtime`` seconds the blades stand still and only the food
+    relaxes, slowly (tau_1 of seconds) against the mechanics (the contact's and the servo's
+    ~5-20 ms).  There each physics step stands for ``factor`` steps of the material's time:
+    the Prony terms advance ``factor * dt`` a step (:meth:`fetch_env.viscoelastic.
+    PronyRelaxation.set_time_scale`) and the trace's time is stretched back to physical time,
+    so the mechanics still settles within a few steps of every change while the relaxation
+    runs ``factor`` times faster: the finite-element practice of time (mass) scaling a
+    quasi-static step.  ``tests/test_probes.py`` holds the scaled hold to the real-time one
+    (moments at the same physical times within 2 % on the study's soft foods, the relaxed
+    fraction within 0.5 %) and to the SLS law.  The contacts are left as they are: scaling
+    their damping down with the rest made them chatter (moment noise of +-5 %, measured).
+    The first ``realtime`` seconds stay physical because a piece is still settling into the
+    clamp then (it rocks for up to ~0.25 s, see ``probes.HOLD_SETTLE``).
+
+    Attributes:
+        factor: physical seconds per simulated second in the scaled hold [-], 1 to 50.
+        realtime: start of the hold simulated unscaled [s].
+    """
+
+    factor: float = 1.0
+    realtime: float = 0.25
+
+    def __post_init__(self) -> None:
+        require_finite("factor", self.factor)
+        require_finite("realtime", self.realtime)
+        require(1.0 <= self.factor <= 50.0, "factor", self.factor, "in [1, 50]")
+        require(self.realtime >= 0.0, "realtime", self.realtime, ">= 0 s")
+
+
 @dataclass
 class Profile:
     """The commanded motion sampled at every physics step."""
@@ -114,19 +147,32 @@ class Profile:
     lift_dot: np.ndarray  # [m/s]
     phase: np.ndarray  # int codes into PHASES
     t_clamp_start: float
+    t_scaled: float = math.inf  # [s] simulated time the time-scaled hold starts at
 
 
-def make_profile(experiment: str, action: FetchAction, dt: float) -> Profile:
-    """Piecewise-linear theta(t) and lift(t) of an experiment, at the physics step."""
+def make_profile(experiment: str, action: FetchAction, dt: float,
+                 time_scale: TimeScale | None = None) -> Profile:
+    """Piecewise-linear theta(t) and lift(t) of an experiment, at the physics step.
+
+    With ``time_scale`` (relaxation only) the hold past ``time_scale.realtime`` is simulated
+    ``time_scale.factor`` times faster: it lasts ``(hold - realtime) / factor`` of simulated
+    time.
+    """
     segments: list[tuple[str, float, float, float]] = []  # (phase, duration, dtheta, dlift)
     t_clamp = action.theta_d / action.omega
     segments.append(("settle", action.settle, 0.0, 0.0))
     segments.append(("clamp", t_clamp, action.theta_d, 0.0))
+    t_scaled = math.inf
     if experiment == "fetch":
         segments.append(("hold", action.hold, 0.0, 0.0))
         segments.append(("lift", action.lift_height / action.lift_speed, 0.0,
                          action.lift_height))
         segments.append(("air", action.air_hold, 0.0, 0.0))
+    elif experiment == "relaxation" and time_scale is not None and time_scale.factor != 1:
+        realtime = min(time_scale.realtime, action.hold)
+        segments.append(("hold", realtime, 0.0, 0.0))
+        t_scaled = action.settle + t_clamp + realtime
+        segments.append(("hold", (action.hold - realtime) / time_scale.factor, 0.0, 0.0))
     elif experiment == "relaxation":
         segments.append(("hold", action.hold, 0.0, 0.0))
     elif experiment == "slip":
@@ -153,7 +199,8 @@ def make_profile(experiment: str, action: FetchAction, dt: float) -> Profile:
             lift_dot[sel] = dz / dur
         phase[sel] = PHASE_CODE[name]
         th0, z0, start = th0 + dth, z0 + dz, end
-    return Profile(theta, theta_dot, lift, lift_dot, phase, t_clamp_start=action.settle)
+    return Profile(theta, theta_dot, lift, lift_dot, phase, t_clamp_start=action.settle,
+                   t_scaled=t_scaled)
 
 
 @dataclass
@@ -251,17 +298,24 @@ class FetchSimulator:
         return self._scenes[geometry]
 
     def run(self, experiment: str = "fetch", action: FetchAction | None = None,
-            observer: Callable[[mujoco.MjData], None] | None = None) -> SimResult:
+            observer: Callable[[mujoco.MjData], None] | None = None,
+            time_scale: TimeScale | None = None) -> SimResult:
         """Simulate ``experiment`` with ``action``; validates both before any physics.
 
         ``observer(data)``, if given, is called at every recorded sample (``record_hz``) with
         the live ``MjData`` (e.g. to render frames); it must not modify it.
+        ``time_scale`` (relaxation only): run the hold quasi-statically time-scaled
+        (:class:`TimeScale`); the trace is then sampled at every step of the scaled hold.
         """
         require(experiment in EXPERIMENTS, "experiment", experiment, f"one of {EXPERIMENTS}")
         action = action or FetchAction()
         require(isinstance(action, FetchAction), "action", action, "a FetchAction")
+        if time_scale is not None:
+            require(isinstance(time_scale, TimeScale), "time_scale", time_scale, "a TimeScale")
+            require(experiment == "relaxation" or time_scale.factor == 1, "time_scale",
+                    time_scale, "only for the relaxation experiment")
         scene = self.scene_for(experiment)
-        return _run(scene, experiment, action, self.record_hz, observer)
+        return _run(scene, experiment, action, self.record_hz, observer, time_scale)
 
 
 def relaxation_contact_timeconst(pieces: tuple[Piece, ...], geometry: Geometry) -> float:
@@ -303,14 +357,24 @@ def servo_commands(scene: Scene, profile: Profile) -> tuple[np.ndarray, np.ndarr
 
 
 def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
-         observer: Callable[[mujoco.MjData], None] | None = None) -> SimResult:
+         observer: Callable[[mujoco.MjData], None] | None = None,
+         time_scale: TimeScale | None = None) -> SimResult:
     m = scene.model
     d = initial_state(scene)
     ids = scene.ids
     dt = m.opt.timestep
-    profile = make_profile(experiment, action, dt)
+    profile = make_profile(experiment, action, dt, time_scale)
     n = len(profile.theta)
     every = max(1, round(1.0 / (record_hz * dt)))
+    # The time-scaled hold (if any) starts at step i_scaled and its sensors are recorded at
+    # every step (each stands for `factor` steps); the strain, blade overlap and lowest
+    # vertex, which hardly move in a hold, keep the regular cadence and are held between.
+    i_scaled = math.ceil(profile.t_scaled / dt - 1e-9) if math.isfinite(profile.t_scaled) else n
+    t_scaled = i_scaled * dt  # the first scaled step starts here (on the step grid)
+    factor = time_scale.factor if time_scale is not None else 1.0
+    metered = np.arange(n) % every == 0
+    record = (metered | (np.arange(n) >= i_scaled)).tolist()
+    metered = metered.tolist()
     prony = PronyRelaxation(scene)
     prony.reset(d)
     strain = StrainMeter(scene, d)
@@ -324,7 +388,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     lift_q = m.jnt_qposadr[ids["lift"]]
     ctrl_hinge, ctrl_lift = servo_commands(scene, profile)
 
-    n_rec = (n + every - 1) // every
+    n_rec = sum(record)
     rec = {k: np.zeros(n_rec) for k in ("t", "theta", "theta_cmd", "moment_left",
                                          "moment_right", "normal_left", "tangential_left",
                                          "normal_right", "tangential_right", "lift",
@@ -363,6 +427,8 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     left, right = servos
     try:
         for i in range(n):
+            if i == i_scaled:
+                prony.set_time_scale(factor)
             # (two scalar reads: cheaper than a numpy reduction over a two-value gather)
             load += smooth * (max(abs(qfrc_constraint[dof_left]), abs(qfrc_constraint[dof_right]))
                               - load)
@@ -378,8 +444,10 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
             moved = moved or not (asleep and d.nv_awake == robot_nv)
             if bad_qacc_count.number:  # autoreset is off: the state is still the bad one
                 raise fail("bad or non-finite acceleration")
-            if i % every == 0:
-                rec["t"][r] = d.time
+            if record[i]:
+                # physical time: the scaled hold's steps stand for factor steps each
+                rec["t"][r] = (d.time if i < i_scaled
+                               else t_scaled + factor * (d.time - t_scaled))
                 rec["phase"][r] = profile.phase[i]
                 rec["theta"][r] = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]]) - q_open
                 # what the motor is told: the profile within the end stop, held where it stalled
@@ -390,13 +458,16 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
                 rec["normal_left"][r], rec["normal_right"][r] = reading["normal"]
                 rec["tangential_left"][r], rec["tangential_right"][r] = reading["tangential"]
                 rec["force"][r] = reading["force"]
-                rec["blade_overlap"][r] = overlap(d)
-                np.minimum(lowest_z, positions.lowest(d), out=lowest_z)
-                if moved or r == 0:
+                if metered[i]:
+                    rec["blade_overlap"][r] = overlap(d)
+                    np.minimum(lowest_z, positions.lowest(d), out=lowest_z)
+                if metered[i] and (moved or r == 0):
                     le_trace[r] = strain.piece_strain(d)
                     moved = False
                 else:
                     le_trace[r] = le_trace[r - 1]
+                    if not metered[i]:
+                        rec["blade_overlap"][r] = rec["blade_overlap"][r - 1]
                 if observer is not None:
                     observer(d)
                 r += 1
@@ -444,6 +515,8 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
         fetch_rate_mass=float(masses[fetched].sum() / masses.sum()), geometry=geometry,
         material=material_summary(scene.pieces), wall_time=wall, n_steps=n, timestep=dt,
         extra={"t_clamp_start": profile.t_clamp_start, "mujoco_warnings": warned,
+               "time_scale": factor,
+               "t_scaled": t_scaled if i_scaled < n else None,
                "stalled_at": None if stall_cap == np.inf else float(stall_cap - q_open),
                "max_blade_overlap": float(rec["blade_overlap"].max())})
 

@@ -123,11 +123,15 @@ _COMMON_DOC = """
     failed estimate gives 0 and a cleared flag. ``"oracle"``: the true values (g1, tau1, mu
     of the material exactly; K1, K2, B nominal, ``K = 2 E A / l`` split by g1, see
     ``fetch_env.probes.nominal_stiffness``). ``"none"``: zeros, flags 0 (the ablation).
-    The hold must be of the order of tau1 (1 to 6 s) to separate g1 from tau1: the default
-    ``probe_hold=3`` identifies them (median error about 2 % for g1 and 6 % for tau1 on 64
-    held-back Block scenes) and costs about 55-65 % of a Block episode; ``probe_hold=0.3`` makes
-    the probes about a third of the episode and still gives mu (median 0.5 %), but g1 and
-    tau1 only coarsely or not at all (measured trade-off in ``docs/env_results.md``).
+    The hold must be of the order of tau1 (1 to 6 s) to separate g1 from tau1.  The default
+    ``probe_hold=6`` is simulated quasi-statically time-scaled (``probe_time_scale=8``: past
+    its first ``probes.HOLD_SETTLE`` the blades stand still and only the food relaxes, so each
+    physics step stands for 8, see ``fetch_env.controller.TimeScale``): 6 s of relaxation for
+    the cost of ~1 s.  It identifies g1 and tau1 on every one of 64 held-back Block scenes
+    (median errors 2.5 % and 4.0 %) and costs about 45 % of a Block episode;
+    ``probe_time_scale=1`` simulates the hold in real time (the unscaled reference; at the
+    old 3 s hold: 2.3 % and 6.0 %, 55-65 % of an episode); ``probe_hold=0.3`` still gives mu
+    (median 0.5 %) but g1 and tau1 only coarsely or not at all (``docs/env_results.md``).
 
     ## Rewards
     ``reward = reward_fetch + reward_deformation + reward_time`` (each in ``info``):
@@ -183,9 +187,10 @@ _COMMON_DOC = """
     | lift_height | 0.005 | lift distance [m] |
     | air_hold | 0.5 | hold in the air before counting fetched pieces [s] |
     | settle | 0.2 | settling on the plate before the clamp [s] |
-    | probe_hold | 3.0 | relaxation probe hold [s]; of the order of tau1 to identify g1, tau1 |
+    | probe_hold | 6.0 | relaxation probe hold [s]; of the order of tau1 to identify g1, tau1 |
     | probe_omega | 0.1 | relaxation probe's clamping angular velocity [rad/s] |
     | probe_strain | 0.06 | relaxation probe's squeeze past first contact (share of width) |
+    | probe_time_scale | 8.0 | relaxation hold's quasi-static time scale, 1-50 (1: real time) |
     | contact_timeconst | 0.01 | contacts' time constant [s] (see Geometry.contact_timeconst) |
     | render_mode | None | None, "rgb_array", "rgb_array_list" or "human" |
     | width | 480 | frame width [px] |
@@ -199,6 +204,11 @@ _COMMON_DOC = """
 
     ## Version history
     - v0: first release (one fetch per episode, reset probes, model/oracle/none estimator).
+      Revised in place before any tagged release: the relaxation probe's contact stiffened
+      with the food and g1, tau1 from the hold (session 9); a 6 s time-scaled relaxation hold
+      and a 0.15 s slide (session 11, was a 3 s real-time hold and a 0.3 s slide).  The
+      observations of a seed changed with each (``probe_hold=3, probe_time_scale=1`` gives
+      session 9's relaxation probe back; its slip probe is not a kwarg).
 """
 
 
@@ -244,9 +254,10 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         lift_height: float = 0.005,
         air_hold: float = 0.5,
         settle: float = 0.2,
-        probe_hold: float = 3.0,
+        probe_hold: float = 6.0,
         probe_omega: float = 0.1,
         probe_strain: float = 0.06,
+        probe_time_scale: float = 8.0,
         contact_timeconst: float = 0.01,
         render_mode: str | None = None,
         width: int = 480,
@@ -276,6 +287,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         require(0.05 <= probe_hold <= 60, "probe_hold", probe_hold, "in [0.05, 60] s")
         require(0.01 <= probe_omega <= 2, "probe_omega", probe_omega, "in [0.01, 2] rad/s")
         require(0 < probe_strain <= 0.3, "probe_strain", probe_strain, "in (0, 0.3]")
+        require(1 <= probe_time_scale <= 50, "probe_time_scale", probe_time_scale, "in [1, 50]")
 
         self.layout = layout
         self.estimator = estimator
@@ -291,7 +303,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         self.lift_height = float(lift_height)
         self.air_hold = float(air_hold)
         self.settle = float(settle)
-        self.probe_config = ProbeConfig(strain=probe_strain, omega=probe_omega, hold=probe_hold)
+        self.probe_config = ProbeConfig(strain=probe_strain, omega=probe_omega, hold=probe_hold,
+                                        hold_time_scale=probe_time_scale)
         self.geometry = Geometry(contact_timeconst=contact_timeconst)  # validates it
         self.render_mode = render_mode
         self.width, self.height, self.camera = width, height, camera
@@ -536,8 +549,8 @@ class FoodFetchBlockEnv(FoodFetchEnv):
     __doc__ = _docstring(
         "FoodFetch-Block-v0: fetch one soft block.",
         "One piece (cube, ellipsoid or sphere) of a sampled viscoelastic material, the "
-        "study's block experiments; the fastest id (about 1 episode a second on one core with "
-        "the default 3 s probe hold: 0.99-1.28 on the project's 2-core VM, docs/env_results.md).",
+        "study's block experiments; the fastest id (about 1.3 episodes a second on one core "
+        "on the project's 2-core VM, docs/env_results.md).",
         "block")
 
     def __init__(self, layout: str = "block", **kwargs: Any) -> None:

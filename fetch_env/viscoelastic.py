@@ -63,8 +63,7 @@ class PronyRelaxation:
     def __init__(self, scene: Scene) -> None:
         m = scene.model
         self.model = m
-        dt = m.opt.timestep
-        node_bodies, node_adr, dofs, stiff, g, decay = [], [], [], [], [], []
+        node_bodies, node_adr, dofs, stiff, g, taus = [], [], [], [], [], []
         n_terms = max(len(p.material.prony_terms) for p in scene.pieces)
         for p, f in zip(scene.pieces, scene.piece_flex, strict=True):
             adr, num = m.flex_nodeadr[f], m.flex_nodenum[f]
@@ -79,7 +78,7 @@ class PronyRelaxation:
             terms = list(p.material.prony_terms) + [(0.0, 1.0)] * n_terms
             terms = terms[:n_terms]
             g.append([t[0] for t in terms])
-            decay.append([np.exp(-dt / t[1]) for t in terms])
+            taus.append([t[1] for t in terms])
         self.n_pieces = len(scene.pieces)
         self.n_terms = n_terms
         self.node_bodies = np.array(node_bodies)  # (P, 8)
@@ -90,8 +89,8 @@ class PronyRelaxation:
         self.grad = _centre_gradients(rest)
         self.g = np.array(g)  # (P, T)
         self._g_row = self.g[:, None, :]  # (P, 1, T): one batched matmul sums g_k u_k
-        self._decay = np.array(decay)[:, :, None]  # (P, T, 1) exp(-dt / tau_k)
-        self._gain = 1.0 - self._decay  # weight of u in the one-step update
+        self._tau = np.array(taus)[:, :, None]  # (P, T, 1) tau_k
+        self.set_time_scale(1.0)
         self._pending = 0  # steps skipped while every piece slept (see apply)
         self._rest_centred = rest - rest.mean(axis=1, keepdims=True)
         self.rest0 = np.array(m.flex_node0[self.node_adr])  # the compiled rest shape
@@ -109,6 +108,16 @@ class PronyRelaxation:
         self._quat = np.tile([1.0, 0.0, 0.0, 0.0], (self.n_pieces, 1))
         self._R = np.zeros((self.n_pieces, 9))
         self.active = n_terms > 0 and bool(np.any(self.g > 0))
+
+    def set_time_scale(self, scale: float) -> None:
+        """Advance the relaxation ``scale`` physics steps' worth per step from now on.
+
+        A quasi-static hold may be run time-scaled (see :func:`fetch_env.controller.
+        relaxation_time_scale`): each step of ``dt`` then stands for ``scale * dt`` of the
+        material's time.  ``scale`` 1 is the plain, physical update.
+        """
+        self._decay = np.exp(-scale * self.model.opt.timestep / self._tau)  # exp(-s dt / tau_k)
+        self._gain = 1.0 - self._decay  # weight of u in the one-step update
 
     def restore(self) -> None:
         """Put the compiled rest shape back into the model."""

@@ -17,8 +17,10 @@ from fetch_env.controller import (
     PHASE_CODE,
     FetchAction,
     FetchSimulator,
+    TimeScale,
     relaxation_contact_timeconst,
 )
+from fetch_env.errors import InvalidParameterError
 from fetch_env.layouts import Piece, single_block
 from fetch_env.materials import Material
 from fetch_env.probes import ProbeConfig, run_probes
@@ -28,17 +30,19 @@ G1, TAU1 = 0.425, 3.667
 THETA_D = 0.0244
 
 
-def relaxation_overshoot(omega: float, hold: float = 20.0) -> tuple[float, float]:
+def relaxation_overshoot(omega: float, hold: float = 20.0,
+                         time_scale: TimeScale | None = None) -> tuple[float, float]:
     """Measured and SLS-predicted M(t_d) / M_inf - 1 for the study's soft cube."""
     r = FetchSimulator(single_block()).run(
-        "relaxation", FetchAction(theta_d=THETA_D, omega=omega, hold=hold))
+        "relaxation", FetchAction(theta_d=THETA_D, omega=omega, hold=hold),
+        time_scale=time_scale)
     tr = r.traces
     moment = 0.5 * (tr["moment_left"] + tr["moment_right"])
     clamp = np.flatnonzero(tr["phase"] == PHASE_CODE["clamp"])
     # M(t_d): the last 3 clamp samples (30 ms, well under tau_1) average out contact noise.
     m_peak = moment[clamp[-3:]].mean()
     # M_inf: the last second of the hold, corrected for the exp(-hold / tau_1) still due.
-    m_end = moment[-100:].mean()
+    m_end = moment[tr["t"] > tr["t"][-1] - 1.0].mean()
     residual = np.exp(-(hold - 0.5) / TAU1)
     m_inf = (m_end - residual * m_peak) / (1 - residual)
     # first contact from the trace, as a robot would see it
@@ -58,6 +62,13 @@ def test_relaxation_shows_through_the_robot_as_the_sls_predicts(omega: float) ->
     measured, predicted = relaxation_overshoot(omega)
     # the study's soft food relaxes by g_1 = 42.5 %: the overshoot is ~0.55-0.7
     assert predicted > 0.5
+    np.testing.assert_allclose(measured, predicted, rtol=0.10)
+
+
+def test_the_time_scaled_hold_relaxes_as_the_sls_predicts() -> None:
+    """The same analytic check through a quasi-statically time-scaled hold (8 physical steps a
+    step past its first 0.25 s): the 20 s hold then costs 2.7 s of simulated time."""
+    measured, predicted = relaxation_overshoot(0.02, time_scale=TimeScale(8.0))
     np.testing.assert_allclose(measured, predicted, rtol=0.10)
 
 
@@ -97,6 +108,53 @@ def test_the_relaxation_through_the_robot_is_converged_in_the_timestep(
     np.testing.assert_allclose(coarse_end / coarse_start, fine_end / fine_start, rtol=0.025)
 
 
+HOLD_WINDOWS = (0.5, 1.0, 2.0, 4.0, 5.9)  # [s] after t_d
+
+
+def windowed_hold_moments(pieces: tuple[Piece, ...], time_scale: TimeScale | None) -> np.ndarray:
+    """Mean moment over +-30 ms about each of ``HOLD_WINDOWS`` into a 6 s relaxation hold
+    (the study's clamp), in physical time."""
+    r = FetchSimulator(pieces).run(
+        "relaxation", FetchAction(theta_d=THETA_D, omega=0.1, hold=6.0), time_scale=time_scale)
+    tr = r.traces
+    t, moment = tr["t"], 0.5 * (tr["moment_left"] + tr["moment_right"])
+    t_d = r.extra["t_clamp_start"] + THETA_D / 0.1
+    return np.array([moment[np.abs(t - t_d - w) < 0.03].mean() for w in HOLD_WINDOWS])
+
+
+@pytest.mark.parametrize(("pieces", "moment_rtol"), [
+    (single_block(), 0.025),
+    pytest.param(single_block("sphere"), 0.025, marks=pytest.mark.slow),
+    pytest.param(single_block("ellipsoid"), 0.025, marks=pytest.mark.slow),
+    # the stiff cube, whose held contact chatters and which the 5 ms step does not resolve
+    # either (above): measured 2.0-4.2 % higher when time-scaled
+    pytest.param(single_block(material=Material(young=2e6)), 0.06, marks=pytest.mark.slow),
+], ids=["soft-cube", "soft-sphere", "soft-ellipsoid", "2MPa-cube"])
+def test_the_time_scaled_hold_matches_the_real_time_hold(
+        pieces: tuple[Piece, ...], moment_rtol: float) -> None:
+    """The env probes' quasi-static time scaling (8 physical steps a step) against the hold
+    simulated in real time, at the same physical times: the held moment (measured within
+    1.8 / 0.2 / 0.9 % for the 0.2 MPa cube / sphere / ellipsoid) and the fraction it relaxes
+    to from 0.5 s to 5.9 s (within 0.1 / 0.2 / 0.2 %; 0.5 % for the 2 MPa cube), the
+    shape the estimators read g_1 and tau_1 from.  Wrong time bookkeeping moves the
+    fraction by the relaxation itself (~30 %)."""
+    real = windowed_hold_moments(pieces, None)
+    scaled = windowed_hold_moments(pieces, TimeScale(8.0))
+    np.testing.assert_allclose(scaled, real, rtol=moment_rtol)
+    np.testing.assert_allclose(scaled[-1] / scaled[0], real[-1] / real[0], rtol=0.01)
+
+
+def test_time_scale_is_validated_before_any_physics() -> None:
+    with pytest.raises(InvalidParameterError, match="factor"):
+        TimeScale(0.5)
+    with pytest.raises(InvalidParameterError, match="factor"):
+        TimeScale(float("nan"))
+    with pytest.raises(InvalidParameterError, match="realtime"):
+        TimeScale(8.0, realtime=-1.0)
+    with pytest.raises(InvalidParameterError, match="time_scale"):
+        FetchSimulator(single_block()).run("fetch", FetchAction(), time_scale=TimeScale(8.0))
+
+
 @pytest.mark.parametrize("mu", [0.1, 0.3, 0.5])
 def test_induced_slip_force_ratio_is_coulomb_mu(mu: float) -> None:
     r = FetchSimulator(single_block(material=Material(mu=mu))).run(
@@ -122,10 +180,13 @@ def hold_relaxation() -> tuple[float, float]:
     """A stiff sphere's reset probe: measured and SLS-predicted M(end) / M(t_d + 0.1 s).
 
     The piece is held-back seed 90000's (3.9 MPa, 10.5 mm), where the env's g1 estimate
-    came out low; the reference is 0.1 s into the hold, past the servo's catch-up.
+    came out low; the reference is 0.1 s into the hold, past the servo's catch-up.  The
+    hold is the 3 s real-time one the figures below were measured with (the env's default
+    became a 6 s time-scaled hold in session 11).
     """
     material = STIFF_SPHERE[0].material
-    outcome = run_probes(STIFF_SPHERE, ProbeConfig(), keep_traces=True)
+    outcome = run_probes(STIFF_SPHERE, ProbeConfig(hold=3.0, hold_time_scale=1.0),
+                         keep_traces=True)
     tr = outcome.traces["relaxation"]
     action = outcome.details["relaxation_action"]
     t = tr["t"] - action["settle"]  # from the clamp start
@@ -172,12 +233,18 @@ def test_a_stalled_relaxation_probe_is_estimated_at_the_angle_it_stalled_at() ->
     reset relaxation probe a little below the last command it was given (the blades' angle
     when the load passed the stall moment).  The estimators must take that stalled angle as
     theta_d (the final command), not the largest command: with the largest one the hold never
-    reached theta_d and neither estimator found a hold (measured, session 9)."""
+    reached theta_d and neither estimator found a hold (measured, session 9).
+
+    Run with the real-time 3 s hold the figures were measured with: this stalled stiff cube is
+    where the env's default time-scaled hold (6 s, 8x) does worst (g1 +29 %, tau1 +108 %,
+    against +21 % / -32 % in real time): its chattering contact creeps, and MuJoCo's
+    soft-contact creep is a rate the time scaling does not scale (docs/env_results.md,
+    session 11)."""
     material = Material(young=3212244.0627809814, poisson=0.4377864883888628,
                         density=1106.5149542573067, g1=0.21149751227192837,
                         tau1=2.548873360971311, mu=0.5734666394557012)
-    outcome = run_probes(single_block("cube", 0.019779186265348782, material), ProbeConfig(),
-                         keep_traces=True)
+    outcome = run_probes(single_block("cube", 0.019779186265348782, material),
+                         ProbeConfig(hold=3.0, hold_time_scale=1.0), keep_traces=True)
     tr = outcome.traces["relaxation"]
     assert tr["theta_cmd"].max() - tr["theta_cmd"][-1] > 1e-5  # stalled below a command
     assert outcome.visco_valid, outcome.warnings
