@@ -461,13 +461,13 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
                 if metered[i]:
                     rec["blade_overlap"][r] = overlap(d)
                     np.minimum(lowest_z, positions.lowest(d), out=lowest_z)
+                else:  # (never the first sample: step 0 is metered)
+                    rec["blade_overlap"][r] = rec["blade_overlap"][r - 1]
                 if metered[i] and (moved or r == 0):
                     le_trace[r] = strain.piece_strain(d)
                     moved = False
                 else:
                     le_trace[r] = le_trace[r - 1]
-                    if not metered[i]:
-                        rec["blade_overlap"][r] = rec["blade_overlap"][r - 1]
                 if observer is not None:
                     observer(d)
                 r += 1
