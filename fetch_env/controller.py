@@ -116,9 +116,10 @@ class TimeScale:
     so the mechanics still settles within a few steps of every change while the relaxation
     runs ``factor`` times faster: the finite-element practice of time (mass) scaling a
     quasi-static step.  ``tests/test_probes.py`` holds the scaled hold to the real-time one
-    (moments at the same physical times within 2 % on the study's soft foods, the relaxed
-    fraction within 0.5 %) and to the SLS law.  The contacts are left as they are: scaling
-    their damping down with the rest made them chatter (moment noise of +-5 %, measured).
+    (moments at the same physical times measured within 1.8 % on the study's soft foods,
+    the relaxed fraction within 0.5 %) and to the SLS law.  The contacts are left as they
+    are: scaling their damping down with the rest made them chatter (moment noise of +-5 %,
+    measured).
     The first ``realtime`` seconds stay physical because a piece is still settling into the
     clamp then (it rocks for up to ~0.25 s, see ``probes.HOLD_SETTLE``).
 

@@ -72,14 +72,24 @@ def test_the_time_scaled_hold_relaxes_as_the_sls_predicts() -> None:
     np.testing.assert_allclose(measured, predicted, rtol=0.10)
 
 
+def relaxation_run(pieces: tuple[Piece, ...], hold: float, timestep: float | None = None,
+                   time_scale: TimeScale | None = None,
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Time, phase, mean blade moment and t_d of the study's clamp (THETA_D at 0.1 rad/s) and
+    a relaxation hold (``timestep`` None: the scene's own)."""
+    r = FetchSimulator(pieces, timestep=timestep).run(
+        "relaxation", FetchAction(theta_d=THETA_D, omega=0.1, hold=hold), time_scale=time_scale)
+    tr = r.traces
+    t_d = r.extra["t_clamp_start"] + THETA_D / 0.1
+    return tr["t"], tr["phase"], 0.5 * (tr["moment_left"] + tr["moment_right"]), t_d
+
+
 def held_moments(pieces: tuple[Piece, ...], timestep: float | None) -> tuple[float, float]:
     """Mean moment 0.2-0.3 s into a 2 s relaxation hold, and over its last 0.1 s (``timestep``
     None: the scene's own)."""
-    r = FetchSimulator(pieces, timestep=timestep).run(
-        "relaxation", FetchAction(theta_d=THETA_D, omega=0.1, hold=2.0))
-    tr = r.traces
-    hold = tr["phase"] == PHASE_CODE["hold"]
-    t, moment = tr["t"][hold], 0.5 * (tr["moment_left"] + tr["moment_right"])[hold]
+    t, phase, moment, _ = relaxation_run(pieces, 2.0, timestep)
+    hold = phase == PHASE_CODE["hold"]
+    t, moment = t[hold], moment[hold]
     start = (t > t[0] + 0.2) & (t < t[0] + 0.3)
     return float(moment[start].mean()), float(moment[-10:].mean())
 
@@ -114,11 +124,7 @@ HOLD_WINDOWS = (0.5, 1.0, 2.0, 4.0, 5.9)  # [s] after t_d
 def windowed_hold_moments(pieces: tuple[Piece, ...], time_scale: TimeScale | None) -> np.ndarray:
     """Mean moment over +-30 ms about each of ``HOLD_WINDOWS`` into a 6 s relaxation hold
     (the study's clamp), in physical time."""
-    r = FetchSimulator(pieces).run(
-        "relaxation", FetchAction(theta_d=THETA_D, omega=0.1, hold=6.0), time_scale=time_scale)
-    tr = r.traces
-    t, moment = tr["t"], 0.5 * (tr["moment_left"] + tr["moment_right"])
-    t_d = r.extra["t_clamp_start"] + THETA_D / 0.1
+    t, _, moment, t_d = relaxation_run(pieces, 6.0, time_scale=time_scale)
     return np.array([moment[np.abs(t - t_d - w) < 0.03].mean() for w in HOLD_WINDOWS])
 
 
