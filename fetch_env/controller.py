@@ -48,6 +48,7 @@ LIFT_SPEED_RANGE = (1e-4, 0.1)  # [m/s]
 STALL_MOMENT = 2.0  # [N m] the clamping motor stalls above this load (~50 N at L = 38 mm)
 CLOSED_MARGIN = 0.01  # [rad] the end stop, before the faces meet at the tips
 STALL_TIME = 0.02  # [s] the load is averaged over this long before the motor stalls
+MAX_TIME_SCALE = 50.0  # [-] most physical steps one step of a time-scaled hold stands for
 RELAXATION_GAP = 1e-4  # [m] blade-food clearance at the start of the relaxation probe
 # Relaxation experiment: least contact stiffness 1 / tc^2 per unit of the food's E / (rho s^2)
 # (see relaxation_contact_timeconst).  0.0075 keeps the default 10 ms contact up to ~0.3 MPa
@@ -123,19 +124,49 @@ class TimeScale:
     The first ``realtime`` seconds stay physical because a piece is still settling into the
     clamp then (it rocks for up to ~0.25 s, see ``probes.HOLD_SETTLE``).
 
+    ``growth`` > 0 spaces the scaled steps logarithmically, as a relaxation test records its
+    samples: each step stands for at least ``growth`` times the physical time elapsed since
+    the hold began (and at most ``MAX_TIME_SCALE`` steps), so a hold of any length costs
+    ``~ln(hold / realtime) / growth`` steps and the late hold, where the moment hardly moves,
+    is crossed in long strides.
+
     Attributes:
-        factor: physical seconds per simulated second in the scaled hold [-], 1 to 50.
+        factor: physical seconds per simulated second in the scaled hold [-], 1 to 50 (the
+            least, with ``growth``).
         realtime: start of the hold simulated unscaled [s].
+        growth: least physical time a scaled step stands for, as a share of the hold's
+            elapsed physical time [-], 0 (a constant ``factor``) to 0.5.
     """
 
     factor: float = 1.0
     realtime: float = 0.25
+    growth: float = 0.0
 
     def __post_init__(self) -> None:
         require_finite("factor", self.factor)
         require_finite("realtime", self.realtime)
-        require(1.0 <= self.factor <= 50.0, "factor", self.factor, "in [1, 50]")
+        require_finite("growth", self.growth)
+        require(1.0 <= self.factor <= MAX_TIME_SCALE, "factor", self.factor,
+                f"in [1, {MAX_TIME_SCALE:g}]")
         require(self.realtime >= 0.0, "realtime", self.realtime, ">= 0 s")
+        require(0.0 <= self.growth <= 0.5, "growth", self.growth, "in [0, 0.5]")
+
+    @property
+    def scaled(self) -> bool:
+        """Whether any step is scaled (else the hold runs in real time)."""
+        return self.factor != 1.0 or self.growth > 0.0
+
+    def step_times(self, elapsed: float, length: float, dt: float) -> np.ndarray:
+        """The physical time each scaled step stands for [s], over ``length`` s of hold that
+        starts ``elapsed`` s after the hold began (the last step is cut to end on time)."""
+        steps: list[float] = []
+        end = elapsed + length
+        while end - elapsed > 1e-9 * dt:
+            h = min(max(self.factor, self.growth * elapsed / dt), MAX_TIME_SCALE) * dt
+            h = min(h, end - elapsed)
+            steps.append(h)
+            elapsed += h
+        return np.array(steps)
 
 
 @dataclass
@@ -147,6 +178,7 @@ class Profile:
     lift: np.ndarray  # [m] stage displacement from the approach height (+ up)
     lift_dot: np.ndarray  # [m/s]
     phase: np.ndarray  # int codes into PHASES
+    step_time: np.ndarray  # [s] physical time each step stands for (dt but in a scaled hold)
     t_clamp_start: float
     t_scaled: float = math.inf  # [s] simulated time the time-scaled hold starts at
 
@@ -156,26 +188,31 @@ def make_profile(experiment: str, action: FetchAction, dt: float,
     """Piecewise-linear theta(t) and lift(t) of an experiment, at the physics step.
 
     With ``time_scale`` (relaxation only) the hold past ``time_scale.realtime`` is simulated
-    ``time_scale.factor`` times faster: it lasts ``(hold - realtime) / factor`` of simulated
-    time.
+    time-scaled (:class:`TimeScale`): one step per entry of ``TimeScale.step_times``.
     """
     segments: list[tuple[str, float, float, float]] = []  # (phase, duration, dtheta, dlift)
     t_clamp = action.theta_d / action.omega
     segments.append(("settle", action.settle, 0.0, 0.0))
     segments.append(("clamp", t_clamp, action.theta_d, 0.0))
     t_scaled = math.inf
+    scaled_steps = np.zeros(0)
     if experiment == "fetch":
         segments.append(("hold", action.hold, 0.0, 0.0))
         segments.append(("lift", action.lift_height / action.lift_speed, 0.0,
                          action.lift_height))
         segments.append(("air", action.air_hold, 0.0, 0.0))
-    elif experiment == "relaxation" and time_scale is not None and time_scale.factor != 1:
-        realtime = min(time_scale.realtime, action.hold)
-        segments.append(("hold", realtime, 0.0, 0.0))
-        t_scaled = action.settle + t_clamp + realtime
-        segments.append(("hold", (action.hold - realtime) / time_scale.factor, 0.0, 0.0))
     elif experiment == "relaxation":
-        segments.append(("hold", action.hold, 0.0, 0.0))
+        if time_scale is not None and time_scale.scaled:
+            # The real-time part ends on the step grid (it is at least ``realtime`` long);
+            # the scaled steps are laid out from there.
+            t_scaled = math.ceil((action.settle + t_clamp + min(time_scale.realtime, action.hold))
+                                 / dt - 1e-9) * dt
+            realtime = t_scaled - action.settle - t_clamp
+            segments.append(("hold", realtime, 0.0, 0.0))
+            scaled_steps = time_scale.step_times(realtime, max(action.hold - realtime, 0.0), dt)
+            segments.append(("hold", scaled_steps.size * dt, 0.0, 0.0))
+        else:
+            segments.append(("hold", action.hold, 0.0, 0.0))
     elif experiment == "slip":
         segments.append(("hold", action.hold, 0.0, 0.0))
         segments.append(("slide", action.slide_time, 0.0, -action.slide_distance))
@@ -200,8 +237,12 @@ def make_profile(experiment: str, action: FetchAction, dt: float,
             lift_dot[sel] = dz / dur
         phase[sel] = PHASE_CODE[name]
         th0, z0, start = th0 + dth, z0 + dz, end
-    return Profile(theta, theta_dot, lift, lift_dot, phase, t_clamp_start=action.settle,
-                   t_scaled=t_scaled)
+    step_time = np.full(n, dt)
+    if scaled_steps.size:
+        i_scaled = round(t_scaled / dt)
+        step_time[i_scaled:i_scaled + scaled_steps.size] = scaled_steps
+    return Profile(theta, theta_dot, lift, lift_dot, phase, step_time,
+                   t_clamp_start=action.settle, t_scaled=t_scaled)
 
 
 @dataclass
@@ -264,13 +305,21 @@ class FetchSimulator:
 
     def __init__(self, pieces: tuple[Piece, ...] | list[Piece],
                  geometry: Geometry | None = None, record_hz: float = 100.0,
-                 timestep: float | None = None) -> None:
+                 timestep: float | None = None, impratio: float | None = None) -> None:
+        """``timestep`` and ``impratio`` override the base scene's (5 ms, 1000) where given."""
         require_finite("record_hz", record_hz)
         require(record_hz >= 100, "record_hz", record_hz, ">= 100 Hz")
+        if timestep is not None:
+            require_finite("timestep", timestep)
+            require(1e-4 <= timestep <= 0.02, "timestep", timestep, "in [1e-4, 0.02] s")
+        if impratio is not None:
+            require_finite("impratio", impratio)
+            require(1 <= impratio <= 1e4, "impratio", impratio, "in [1, 1e4]")
         self.pieces = tuple(pieces)
         self.geometry = geometry or Geometry()
         self.record_hz = record_hz
         self.timestep = timestep
+        self.impratio = impratio
         self._scenes: dict[Geometry, Scene] = {}
 
     def scene_for(self, experiment: str) -> Scene:
@@ -295,7 +344,8 @@ class FetchSimulator:
             geometry = dataclasses.replace(geometry, tip_clearance=max(
                 geometry.tip_clearance, 0.5 * centroid))
         if geometry not in self._scenes:
-            self._scenes[geometry] = build_scene(self.pieces, geometry, self.timestep)
+            self._scenes[geometry] = build_scene(self.pieces, geometry, self.timestep,
+                                                 self.impratio)
         return self._scenes[geometry]
 
     def run(self, experiment: str = "fetch", action: FetchAction | None = None,
@@ -313,7 +363,7 @@ class FetchSimulator:
         require(isinstance(action, FetchAction), "action", action, "a FetchAction")
         if time_scale is not None:
             require(isinstance(time_scale, TimeScale), "time_scale", time_scale, "a TimeScale")
-            require(experiment == "relaxation" or time_scale.factor == 1, "time_scale",
+            require(experiment == "relaxation" or not time_scale.scaled, "time_scale",
                     time_scale, "only for the relaxation experiment")
         scene = self.scene_for(experiment)
         return _run(scene, experiment, action, self.record_hz, observer, time_scale)
@@ -368,11 +418,12 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     n = len(profile.theta)
     every = max(1, round(1.0 / (record_hz * dt)))
     # The time-scaled hold (if any) starts at step i_scaled and its sensors are recorded at
-    # every step (each stands for `factor` steps); the strain, blade overlap and lowest
-    # vertex, which hardly move in a hold, keep the regular cadence and are held between.
-    i_scaled = math.ceil(profile.t_scaled / dt - 1e-9) if math.isfinite(profile.t_scaled) else n
-    t_scaled = i_scaled * dt  # the first scaled step starts here (on the step grid)
-    factor = time_scale.factor if time_scale is not None else 1.0
+    # every step (each stands for several); the strain, blade overlap and lowest vertex,
+    # which hardly move in a hold, keep the regular cadence and are held between.
+    i_scaled = round(profile.t_scaled / dt) if math.isfinite(profile.t_scaled) else n
+    # the physical time at the end of each step, and each step's time in physics steps
+    t_physical = np.cumsum(profile.step_time).tolist()
+    scale = (profile.step_time / dt).tolist()
     metered = np.arange(n) % every == 0
     record = (metered | (np.arange(n) >= i_scaled)).tolist()
     metered = metered.tolist()
@@ -428,8 +479,8 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     left, right = servos
     try:
         for i in range(n):
-            if i == i_scaled:
-                prony.set_time_scale(factor)
+            if i >= i_scaled and (i == i_scaled or scale[i] != scale[i - 1]):
+                prony.set_time_scale(scale[i])
             # (two scalar reads: cheaper than a numpy reduction over a two-value gather)
             load += smooth * (max(abs(qfrc_constraint[dof_left]), abs(qfrc_constraint[dof_right]))
                               - load)
@@ -446,9 +497,8 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
             if bad_qacc_count.number:  # autoreset is off: the state is still the bad one
                 raise fail("bad or non-finite acceleration")
             if record[i]:
-                # physical time: the scaled hold's steps stand for factor steps each
-                rec["t"][r] = (d.time if i < i_scaled
-                               else t_scaled + factor * (d.time - t_scaled))
+                # physical time: the scaled hold's steps stand for several steps each
+                rec["t"][r] = d.time if i < i_scaled else t_physical[i]
                 rec["phase"][r] = profile.phase[i]
                 rec["theta"][r] = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]]) - q_open
                 # what the motor is told: the profile within the end stop, held where it stalled
@@ -516,8 +566,8 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
         fetch_rate_mass=float(masses[fetched].sum() / masses.sum()), geometry=geometry,
         material=material_summary(scene.pieces), wall_time=wall, n_steps=n, timestep=dt,
         extra={"t_clamp_start": profile.t_clamp_start, "mujoco_warnings": warned,
-               "time_scale": factor,
-               "t_scaled": t_scaled if i_scaled < n else None,
+               "time_scale": None if time_scale is None else dataclasses.asdict(time_scale),
+               "t_scaled": i_scaled * dt if i_scaled < n else None,
                "stalled_at": None if stall_cap == np.inf else float(stall_cap - q_open),
                "max_blade_overlap": float(rec["blade_overlap"].max())})
 

@@ -124,14 +124,16 @@ _COMMON_DOC = """
     of the material exactly; K1, K2, B nominal, ``K = 2 E A / l`` split by g1, see
     ``fetch_env.probes.nominal_stiffness``). ``"none"``: zeros, flags 0 (the ablation).
     The hold must be of the order of tau1 (1 to 6 s) to separate g1 from tau1.  The default
-    ``probe_hold=6`` is simulated quasi-statically time-scaled (``probe_time_scale=8``: past
-    its first ``probes.HOLD_SETTLE`` the blades stand still and only the food relaxes, so each
-    physics step stands for 8, see ``fetch_env.controller.TimeScale``): 6 s of relaxation for
-    the cost of ~1 s.  It identifies g1 and tau1 on every one of 64 held-back Block scenes
-    (median errors 2.5 % and 4.0 %) and costs about 45 % of a Block episode;
-    ``probe_time_scale=1`` simulates the hold in real time (the unscaled reference; at the
-    old 3 s hold: 2.3 % and 6.0 %, 55-65 % of an episode); ``probe_hold=0.3`` still gives mu
-    (median 0.5 %) but g1 and tau1 only coarsely or not at all (``docs/env_results.md``).
+    ``probe_hold=6`` is simulated quasi-statically time-scaled: past its first
+    ``probes.HOLD_SETTLE`` the blades stand still and only the food relaxes, so each physics
+    step stands for at least ``probe_time_scale=8`` steps and for at least
+    ``probe_time_growth=0.05`` of the hold's elapsed time (log-spaced, as a relaxation test
+    records; ``fetch_env.controller.TimeScale``): 6 s of relaxation in ~60 steps.  With the
+    probes' other settings (``fetch_env.probes.ProbeConfig``) it costs about a third of a
+    Block episode; the accuracy on held-back scenes is in the README and
+    ``docs/env_results.md``.  ``probe_time_scale=1, probe_time_growth=0`` simulates the hold
+    in real time (the unscaled reference); ``probe_hold=0.3`` still gives mu but g1 and tau1
+    only coarsely or not at all.
 
     ## Rewards
     ``reward = reward_fetch + reward_deformation + reward_time`` (each in ``info``):
@@ -191,6 +193,7 @@ _COMMON_DOC = """
     | probe_omega | 0.1 | relaxation probe's clamping angular velocity [rad/s] |
     | probe_strain | 0.06 | relaxation probe's squeeze past first contact (share of width) |
     | probe_time_scale | 8.0 | relaxation hold's quasi-static time scale, 1-50 (1: real time) |
+    | probe_time_growth | 0.05 | least share of the hold's elapsed time a scaled step stands for |
     | contact_timeconst | 0.01 | contacts' time constant [s] (see Geometry.contact_timeconst) |
     | render_mode | None | None, "rgb_array", "rgb_array_list" or "human" |
     | width | 480 | frame width [px] |
@@ -206,9 +209,11 @@ _COMMON_DOC = """
     - v0: first release (one fetch per episode, reset probes, model/oracle/none estimator).
       Revised in place before any tagged release: the relaxation probe's contact stiffened
       with the food and g1, tau1 from the hold (session 9); a 6 s time-scaled relaxation hold
-      and a 0.15 s slide (session 11, was a 3 s real-time hold and a 0.3 s slide).  The
-      observations of a seed changed with each (``probe_hold=3, probe_time_scale=1`` gives
-      session 9's relaxation probe back; its slip probe is not a kwarg).
+      and a 0.15 s slide (session 11, was a 3 s real-time hold and a 0.3 s slide); the hold's
+      steps log-spaced, its impratio 30 and the slip probe at a 10 ms step (session 12).
+      The observations of a seed changed with each (``probe_hold=3, probe_time_scale=1,
+      probe_time_growth=0`` gives session 9's relaxation hold back; the probes' scene
+      settings are ``ProbeConfig`` fields, not kwargs).
 """
 
 
@@ -258,6 +263,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         probe_omega: float = 0.1,
         probe_strain: float = 0.06,
         probe_time_scale: float = 8.0,
+        probe_time_growth: float = 0.05,
         contact_timeconst: float = 0.01,
         render_mode: str | None = None,
         width: int = 480,
@@ -288,6 +294,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         require(0.01 <= probe_omega <= 2, "probe_omega", probe_omega, "in [0.01, 2] rad/s")
         require(0 < probe_strain <= 0.3, "probe_strain", probe_strain, "in (0, 0.3]")
         require(1 <= probe_time_scale <= 50, "probe_time_scale", probe_time_scale, "in [1, 50]")
+        require(0 <= probe_time_growth <= 0.5, "probe_time_growth", probe_time_growth,
+                "in [0, 0.5]")
 
         self.layout = layout
         self.estimator = estimator
@@ -304,7 +312,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         self.air_hold = float(air_hold)
         self.settle = float(settle)
         self.probe_config = ProbeConfig(strain=probe_strain, omega=probe_omega, hold=probe_hold,
-                                        hold_time_scale=probe_time_scale)
+                                        hold_time_scale=probe_time_scale,
+                                        hold_time_growth=probe_time_growth)
         self.geometry = Geometry(contact_timeconst=contact_timeconst)  # validates it
         self.render_mode = render_mode
         self.width, self.height, self.camera = width, height, camera

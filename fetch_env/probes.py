@@ -21,18 +21,36 @@ faces first reach the piece's actual surface (the compiled mesh's rest vertices,
 the nominal shape, so the nominal width would miss the piece), plus the angle that
 squeezes the piece by ``strain`` of its width: the same gentle squeeze for every shape.
 
-Accuracy against time (measured on held-back sampled Block scenes, see
-``docs/env_results.md`` and ``tests/test_env_slow.py``): the hold must be of the order of
-tau_1 (1 to 6 s) for g_1 and tau_1 to be identified: over a hold h << tau_1 the decay is
-linear to within (h / tau_1)^2 / 2 and only the ratio g_1 / tau_1 shows.  The default hold is
-6 s, simulated quasi-statically time-scaled past its first ``HOLD_SETTLE`` (8 physical steps
-a step, :class:`fetch_env.controller.TimeScale`), so it costs ~1 s of simulated time: on 64
-held-back scenes it gives g_1 to a median of 2.5 % and tau_1 of 4.0 % (95th percentiles 8 %
-and 28 %), against 2.3 % and 6.0 % (12 % and 33 %) for the 3 s real-time hold it replaced
-(session 11), at about 60 % of its cost.  The slip probe's 0.15 s slide, sampled at 200 Hz,
-gives mu to a median of 0.2 % (95th percentile 3 %; the 0.3 s slide: 0.5 % and 9.5 %).
-With the servos no longer saturating, a fast slip clamp (0.4 rad/s) is stable and saves
-~0.2 s; the relaxation clamp stays at 0.1 rad/s (0.2 and 0.4 identified g_1 less often).
+Accuracy against time (measured on sampled Block scenes, see ``docs/env_results.md`` and
+``tests/test_env_slow.py``): the hold must be of the order of tau_1 (1 to 6 s) for g_1 and
+tau_1 to be identified: over a hold h << tau_1 the decay is linear to within
+(h / tau_1)^2 / 2 and only the ratio g_1 / tau_1 shows.  The default hold is 6 s, simulated
+quasi-statically time-scaled past its first ``HOLD_SETTLE``
+(:class:`fetch_env.controller.TimeScale`): each step stands for at least 8 physical steps
+and at least 5 % of the hold's elapsed time, so the samples are log-spaced, as a relaxation
+test records them, and the 6 s cost ~60 steps past the first 0.25 s.  Three settings make the
+probes cheap (session 12; on seeds 5000-5191, |error| median / 75th / 95th percentile, and
+the probes' wall time per reset on this project's 2-core VM):
+
+* session 11's probes (a constant 8x hold, impratio 1000, slip at 5 ms): mu 0.1 / 1.0 /
+  4.9 %, g_1 2.4 / 5.1 / 10.1 %, tau_1 4.9 / 9.7 / 25 %; 244 ms;
+* ``relaxation_impratio`` 30 (impratio sets how stiff friction is against the normal force;
+  at one held state MuJoCo's Newton solver took 12-13 iterations a step at 1000, 9-10 at
+  100 and 5-6 at 10, 455 / 350 / 255 us a step): with the other two settings, 100 gave
+  tau_1 3.5 / 6.4 / 17 %, 30 2.4 / 5.9 / 15 %, and 10 let stiff pieces creep (tau_1 errors
+  up to 330 %);
+* log-spaced steps (``hold_time_growth`` 0.05): ~66 scaled steps instead of 144;
+* the slip probe at a 10 ms step (``slip_timestep``): mu as at 5 ms (0.1 / 1.2 / 4.6 %) for
+  half the steps; the relaxation probe at 10 ms was worse (tau_1 median 9 % on 64 seeds).
+
+Together: mu 0.1 / 1.2 / 4.6 %, g_1 3.4 / 6.6 / 12 %, tau_1 2.4 / 5.9 / 15 %; 113 ms.  g_1 is
+a point worse because stiff pieces (E > 1 MPa) come out lower: mean -8 % (-5 % before; soft
+ones -1 % both times; the contact in series with them, see
+:func:`fetch_env.controller.relaxation_contact_timeconst`); tau_1 is better.  A faster
+relaxation clamp (0.2 rad/s) saved 20 steps but moved g_1's 95th percentile to 15 %.  The
+slip probe's 0.15 s slide, sampled at every 10 ms step, gives estimate_friction its
+samples; its fast clamp (0.4 rad/s) is stable and saves ~0.2 s; the relaxation clamp stays at
+0.1 rad/s.
 
 The oracle values are the material's g_1, tau_1 and mu exactly, and nominal spring constants
 for K1, K2 and B from the piece's size (see :func:`true_parameters`).
@@ -75,11 +93,12 @@ HOLD_SKIP = 0.1  # [s] start of the relaxation hold left out of the fit (servo c
 HOLD_SETTLE = 0.25
 CLAMP_WEIGHT = 0.3  # full fit: clamp residuals against the hold (docs/estimators_results.md)
 ENVELOPE_QUANTILE = 0.95  # slip probe: quantile of |F_t| / F_n taken as mu
-# [Hz] the slip probe's sampling: its 0.15 s slide then gives estimate_friction the 20 samples
-# it needs (at 100 Hz only the envelope could be used).  Seeds 5000-5191, |mu error| median /
-# 75th / 95th percentile / max: 0.3 s slide at 100 Hz 0.2 / 1.3 / 6.6 / 28 %; 0.2 s, 100 Hz
-# 0.2 / 1.4 / 5.6 / 48 %; 0.15 s, 100 Hz 0.2 / 1.3 / 7.2 / 34 %; 0.15 s, 200 Hz 0.1 / 1.0 /
-# 4.9 / 24 % (session 11).
+# [Hz] the slip probe's sampling: every step (at 5 ms, 200 Hz gave estimate_friction the 20
+# samples of a 0.15 s slide; at 100 Hz only the envelope could be used).  Seeds 5000-5191,
+# |mu error| median / 75th / 95th percentile / max, 5 ms step: 0.3 s slide at 100 Hz 0.2 /
+# 1.3 / 6.6 / 28 %; 0.2 s, 100 Hz 0.2 / 1.4 / 5.6 / 48 %; 0.15 s, 100 Hz 0.2 / 1.3 / 7.2 /
+# 34 %; 0.15 s, 200 Hz 0.1 / 1.0 / 4.9 / 24 % (session 11); at the 10 ms step, every step
+# (100 Hz): 0.1 / 1.2 / 4.6 / 13 % (session 12).
 SLIP_RECORD_HZ = 200.0
 
 
@@ -103,6 +122,13 @@ class ProbeConfig:
         hold_time_scale: the relaxation hold past its first ``HOLD_SETTLE`` is simulated
             this many times faster, quasi-statically (:class:`fetch_env.controller.
             TimeScale`); 1 simulates it in real time.
+        hold_time_growth: each scaled step of the relaxation hold stands for at least this
+            share of the hold's elapsed time (log-spaced steps, ``TimeScale.growth``).
+        relaxation_impratio: MuJoCo's ``impratio`` in the relaxation probe's scene (the base
+            scene's is 1000, which makes friction nearly Coulomb for the fetch and the slip).
+            The held piece must not creep, but 30 is enough for that and halves the Newton
+            iterations of each step (see the module docstring).
+        slip_timestep: the slip probe's physics step [s] (the base scene's is 5 ms).
     """
 
     strain: float = 0.06
@@ -115,6 +141,9 @@ class ProbeConfig:
     slide_distance: float = 0.002
     slide_time: float = 0.15
     hold_time_scale: float = 8.0
+    hold_time_growth: float = 0.05
+    relaxation_impratio: float = 30.0
+    slip_timestep: float = 0.01
 
 
 @dataclass
@@ -341,8 +370,9 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     wall = time.perf_counter()
     k = probe_piece_index(pieces)
     piece = dataclasses.replace(pieces[k], x=0.0, y=0.0)
-    sim = FetchSimulator((piece,), geometry)
-    slip_sim = FetchSimulator((piece,), geometry, record_hz=SLIP_RECORD_HZ)
+    sim = FetchSimulator((piece,), geometry, impratio=config.relaxation_impratio)
+    slip_sim = FetchSimulator((piece,), geometry, record_hz=SLIP_RECORD_HZ,
+                              timestep=config.slip_timestep)
     est = dict.fromkeys(PARAM_NAMES, math.nan)
     warnings: list[str] = []
     traces: dict[str, dict[str, np.ndarray]] = {}
@@ -353,7 +383,8 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
         action = FetchAction(theta_d=theta_d, omega=config.omega, hold=config.hold,
                              settle=config.settle)
         res = sim.run("relaxation", action,
-                      time_scale=TimeScale(config.hold_time_scale, realtime=HOLD_SETTLE))
+                      time_scale=TimeScale(config.hold_time_scale, realtime=HOLD_SETTLE,
+                                           growth=config.hold_time_growth))
         details["relaxation_action"] = action.to_dict()
         details["relaxation_geometry"] = res.geometry  # L and theta_0 for the SLS
         details["relaxation_max_log_strain"] = float(res.traces["max_log_strain"].max())

@@ -170,7 +170,7 @@ def _face_offset(pieces: tuple[Piece, ...], geometry: Geometry, stage_y: float) 
 
 
 def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | None = None,
-                timestep: float | None = None) -> Scene:
+                timestep: float | None = None, impratio: float | None = None) -> Scene:
     """Compile the base scene with ``pieces`` on the plate and the end-effector above them.
 
     Validates everything first (pieces, overlaps, geometry) so that nothing is compiled for
@@ -205,6 +205,8 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
     spec = mujoco.MjSpec.from_string(xml)
     if timestep is not None:
         spec.option.timestep = timestep
+    if impratio is not None:
+        spec.option.impratio = impratio
     stage = spec.body("stage")
     stage.pos = [stage_xy[0], stage_xy[1], geometry.hinge_height]
     for side, sign in (("left", -1.0), ("right", 1.0)):

@@ -112,9 +112,9 @@ class PronyRelaxation:
     def set_time_scale(self, scale: float) -> None:
         """Advance the relaxation ``scale`` physics steps' worth per step from now on.
 
-        A quasi-static hold may be run time-scaled (see :func:`fetch_env.controller.
-        relaxation_time_scale`): each step of ``dt`` then stands for ``scale * dt`` of the
-        material's time.  ``scale`` 1 is the plain, physical update.
+        A quasi-static hold may be run time-scaled (see :class:`fetch_env.controller.
+        TimeScale`): each step of ``dt`` then stands for ``scale * dt`` of the material's
+        time (``scale`` may change from step to step).  ``scale`` 1 is the plain, physical update.
         """
         self._decay = np.exp(-scale * self.model.opt.timestep / self._tau)  # exp(-s dt / tau_k)
         self._gain = 1.0 - self._decay  # weight of u in the one-step update
