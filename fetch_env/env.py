@@ -558,7 +558,7 @@ class FoodFetchBlockEnv(FoodFetchEnv):
     __doc__ = _docstring(
         "FoodFetch-Block-v0: fetch one soft block.",
         "One piece (cube, ellipsoid or sphere) of a sampled viscoelastic material, the "
-        "study's block experiments; the fastest id (about 1.3 episodes a second on one core "
+        "study's block experiments; the fastest id (about 2.3-2.5 episodes a second on one core "
         "on the project's 2-core VM, docs/env_results.md).",
         "block")
 
