@@ -180,7 +180,7 @@ class Profile:
     phase: np.ndarray  # int codes into PHASES
     step_time: np.ndarray  # [s] physical time each step stands for (dt but in a scaled hold)
     t_clamp_start: float
-    t_scaled: float = math.inf  # [s] simulated time the time-scaled hold starts at
+    i_scaled: int | None = None  # the step the time-scaled hold starts at (None: no scaling)
 
 
 def make_profile(experiment: str, action: FetchAction, dt: float,
@@ -194,7 +194,7 @@ def make_profile(experiment: str, action: FetchAction, dt: float,
     t_clamp = action.theta_d / action.omega
     segments.append(("settle", action.settle, 0.0, 0.0))
     segments.append(("clamp", t_clamp, action.theta_d, 0.0))
-    t_scaled = math.inf
+    i_scaled: int | None = None
     scaled_steps = np.zeros(0)
     if experiment == "fetch":
         segments.append(("hold", action.hold, 0.0, 0.0))
@@ -205,9 +205,9 @@ def make_profile(experiment: str, action: FetchAction, dt: float,
         if time_scale is not None and time_scale.scaled:
             # The real-time part ends on the step grid (it is at least ``realtime`` long);
             # the scaled steps are laid out from there.
-            t_scaled = math.ceil((action.settle + t_clamp + min(time_scale.realtime, action.hold))
-                                 / dt - 1e-9) * dt
-            realtime = t_scaled - action.settle - t_clamp
+            i_scaled = math.ceil((action.settle + t_clamp + min(time_scale.realtime, action.hold))
+                                 / dt - 1e-9)
+            realtime = i_scaled * dt - action.settle - t_clamp
             segments.append(("hold", realtime, 0.0, 0.0))
             scaled_steps = time_scale.step_times(realtime, max(action.hold - realtime, 0.0), dt)
             segments.append(("hold", scaled_steps.size * dt, 0.0, 0.0))
@@ -238,11 +238,10 @@ def make_profile(experiment: str, action: FetchAction, dt: float,
         phase[sel] = PHASE_CODE[name]
         th0, z0, start = th0 + dth, z0 + dz, end
     step_time = np.full(n, dt)
-    if scaled_steps.size:
-        i_scaled = round(t_scaled / dt)
+    if i_scaled is not None:
         step_time[i_scaled:i_scaled + scaled_steps.size] = scaled_steps
     return Profile(theta, theta_dot, lift, lift_dot, phase, step_time,
-                   t_clamp_start=action.settle, t_scaled=t_scaled)
+                   t_clamp_start=action.settle, i_scaled=i_scaled)
 
 
 @dataclass
@@ -420,10 +419,13 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     # The time-scaled hold (if any) starts at step i_scaled and its sensors are recorded at
     # every step (each stands for several); the strain, blade overlap and lowest vertex,
     # which hardly move in a hold, keep the regular cadence and are held between.
-    i_scaled = round(profile.t_scaled / dt) if math.isfinite(profile.t_scaled) else n
-    # the physical time at the end of each step, and each step's time in physics steps
+    i_scaled = n if profile.i_scaled is None else profile.i_scaled
+    # the physical time at the end of each step, and the steps at which the time scale
+    # changes, with the scale (in physics steps) from there on
     t_physical = np.cumsum(profile.step_time).tolist()
-    scale = (profile.step_time / dt).tolist()
+    scale = profile.step_time[i_scaled:] / dt
+    changes = np.flatnonzero(np.diff(scale, prepend=np.nan) != 0)
+    rescale = dict(zip((i_scaled + changes).tolist(), scale[changes].tolist(), strict=True))
     metered = np.arange(n) % every == 0
     record = (metered | (np.arange(n) >= i_scaled)).tolist()
     metered = metered.tolist()
@@ -479,8 +481,8 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     left, right = servos
     try:
         for i in range(n):
-            if i >= i_scaled and (i == i_scaled or scale[i] != scale[i - 1]):
-                prony.set_time_scale(scale[i])
+            if i in rescale:
+                prony.set_time_scale(rescale[i])
             # (two scalar reads: cheaper than a numpy reduction over a two-value gather)
             load += smooth * (max(abs(qfrc_constraint[dof_left]), abs(qfrc_constraint[dof_right]))
                               - load)
