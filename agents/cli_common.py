@@ -4,6 +4,7 @@ parsers, writable-path checks, the food and clamp options and atomic JSON writes
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import math
 import os
@@ -15,6 +16,22 @@ EXIT_USAGE = 2
 
 class UsageError(Exception):
     """A mistake in the command line or its input, reported as one line with exit code 2."""
+
+
+# The optional extras (pyproject.toml) and the modules each brings, by import name.
+EXTRAS: dict[str, tuple[str, ...]] = {
+    "figures": ("matplotlib", "tqdm"),
+    "train": ("stable_baselines3", "torch", "yaml", "tqdm"),
+}
+
+
+def require_extra(command: str, extra: str) -> None:
+    """Stop with a one-line usage error, before any work starts, when ``command`` needs an
+    extra that is not installed (the core installs only gymnasium, mujoco, numpy, scipy)."""
+    missing = [m for m in EXTRAS[extra] if importlib.util.find_spec(m) is None]
+    if missing:
+        raise UsageError(f"food-fetch {command}: needs the {extra} extra (missing: "
+                         f"{', '.join(missing)}): pip install -e '.[{extra}]'")
 
 
 class Parser(argparse.ArgumentParser):

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from agents.cli_common import UsageError, finite, writable, write_json
+from agents.cli_common import UsageError, finite, require_extra, writable, write_json
 
 
 def _positive_int(text: str) -> int:
@@ -69,6 +69,7 @@ def _payload(args: argparse.Namespace, agents: list[str], records: list[dict[str
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
+    require_extra("evaluate", "figures")
     from agents.evaluate import (
         REFERENCE,
         AgentSpecError,
@@ -82,9 +83,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         write_csv,
         write_plots,
     )
-    from agents.train import env_ids
+    from fetch_env import ENV_IDS
 
-    ids = env_ids()
+    ids = sorted(ENV_IDS)
     if args.env not in ids:
         raise UsageError(f"food-fetch evaluate: unknown environment id {args.env!r}; "
                          f"choose from {', '.join(ids)}")

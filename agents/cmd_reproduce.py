@@ -23,7 +23,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from agents.cli_common import UsageError, finite
+from agents.cli_common import UsageError, finite, require_extra
 
 EXPERIMENTS: tuple[str, ...] = ("friction", "viscoelastic", "fetch-rate")
 _HELP = {
@@ -122,6 +122,7 @@ def pyplot() -> Any:
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
+    require_extra("reproduce", "figures")
     module = load(args.experiment)
     if module is None or not hasattr(module, "run"):
         raise UsageError(

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from agents.cli_common import UsageError, finite
+from agents.cli_common import UsageError, finite, require_extra
 
 ENV_HELP = "FoodFetch-Block-v0, -Row-v0, -TwoRows-v0 or -Diced-v0"
 
@@ -33,6 +33,7 @@ def _positive_int(text: str) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    require_extra("train", "train")
     from agents.train import TrainError, env_ids, load_hyperparams, parse_override, train
 
     try:
@@ -43,11 +44,6 @@ def cmd_train(args: argparse.Namespace) -> int:
         load_hyperparams(args.algo, args.env, args.hyperparams_file, overrides)  # fail early
         if args.resume is not None and not Path(args.resume).is_file():
             raise TrainError(f"checkpoint not found: {args.resume!r}")
-        try:
-            import stable_baselines3  # noqa: F401
-            import torch  # noqa: F401
-        except ImportError:
-            raise TrainError("training needs the train extra: pip install -e '.[train]'") from None
         import sys
 
         out = train(args.algo, args.env, args.timesteps, args.seed, args.log_dir,

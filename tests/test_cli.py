@@ -46,3 +46,51 @@ def test_user_mistakes_are_one_line_and_exit_2(args: list[str], needle: str) -> 
     assert len(lines) == 1, p.stderr
     assert needle in lines[0]
     assert "Traceback" not in p.stderr
+
+
+def test_the_core_needs_only_gymnasium_mujoco_numpy_scipy() -> None:
+    """The issue's core dependencies, exactly; the rest are extras (pyproject.toml)."""
+    import re
+    import tomllib
+    from pathlib import Path
+
+    project = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())["project"]
+    names = {re.split(r"[<>=\[ ;]", d, maxsplit=1)[0].lower() for d in project["dependencies"]}
+    assert names == {"gymnasium", "mujoco", "numpy", "scipy"}
+    from agents.cli_common import EXTRAS
+
+    assert set(EXTRAS) <= set(project["optional-dependencies"])
+
+
+def test_simulate_and_estimate_import_no_extra() -> None:
+    """``food-fetch simulate`` and the core packages run on the core dependencies alone."""
+    code = ("import contextlib, io, sys, agents.cli as c; import fetch_env.env, estimators\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n"
+            "    assert c.main(['simulate', '--hold', '0.2']) == 0\n"
+            "print(sorted(m for m in ('matplotlib', 'tqdm', 'yaml', 'torch', "
+            "'stable_baselines3') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == "[]"
+
+
+@pytest.mark.parametrize(("args", "extra", "module"), [
+    (["reproduce", "friction", "--out", "{tmp}/out"], "figures", "matplotlib"),
+    (["evaluate", "--env", "FoodFetch-Block-v0", "--episodes", "1"], "figures", "tqdm"),
+    (["train", "--env", "FoodFetch-Block-v0", "--timesteps", "10", "--log-dir",
+      "{tmp}/logs"], "train", "stable_baselines3"),
+], ids=["reproduce", "evaluate", "train"])
+def test_a_missing_extra_is_one_line_and_exit_2_before_any_work(
+        tmp_path, monkeypatch, capsys, args: list[str], extra: str, module: str) -> None:
+    import importlib.util
+
+    from agents import cli
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == module else real(name, *a))
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and f"needs the {extra} extra" in err and module in err, err
+    assert [p for p in tmp_path.rglob("*") if p.is_file()] == []
