@@ -83,7 +83,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         write_csv,
         write_plots,
     )
-    from fetch_env import ENV_IDS
+    from fetch_env import ENV_IDS  # (not agents.train.env_ids: that module needs PyYAML)
 
     ids = sorted(ENV_IDS)
     if args.env not in ids:

@@ -39,12 +39,11 @@ class TrainError(Exception):
 
 
 def env_ids() -> tuple[str, ...]:
-    """The registered ``FoodFetch-*`` ids (importing ``fetch_env`` registers them)."""
-    import gymnasium as gym
+    """The ``FoodFetch-*`` ids (``fetch_env.ENV_IDS``, which importing ``fetch_env``
+    registers), sorted."""
+    from fetch_env import ENV_IDS
 
-    import fetch_env  # noqa: F401
-
-    return tuple(sorted(k for k in gym.registry if k.startswith("FoodFetch-")))
+    return tuple(sorted(ENV_IDS))
 
 
 def hyperparams_path(algo: str) -> Path:
