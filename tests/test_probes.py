@@ -222,6 +222,12 @@ def test_induced_slip_force_ratio_is_coulomb_mu(mu: float) -> None:
         np.testing.assert_allclose(ratio.mean(), mu, rtol=0.02)
 
 
+# The probes with session 9-10's 3 s real-time relaxation hold at the base scene's impratio
+# (1000), which the stiff-piece figures below were measured with.  (hold_time_scale=1 alone
+# no longer gives it: since session 12 the scaled steps also grow with the hold, and the
+# relaxation probe runs at impratio 30.)
+REAL_TIME_PROBES = ProbeConfig(hold=3.0, hold_time_scale=1.0, hold_time_growth=0.0,
+                               relaxation_impratio=1000.0)
 STIFF_SPHERE = single_block("sphere", 0.0105, Material(young=3.9e6, poisson=0.43, g1=0.416,
                                                        tau1=2.05, mu=0.51))
 
@@ -235,7 +241,7 @@ def hold_relaxation() -> tuple[float, float]:
     became a 6 s time-scaled hold in session 11).
     """
     material = STIFF_SPHERE[0].material
-    outcome = run_probes(STIFF_SPHERE, ProbeConfig(hold=3.0, hold_time_scale=1.0),
+    outcome = run_probes(STIFF_SPHERE, REAL_TIME_PROBES,
                          keep_traces=True)
     tr = outcome.traces["relaxation"]
     action = outcome.details["relaxation_action"]
@@ -294,7 +300,7 @@ def test_a_stalled_relaxation_probe_is_estimated_at_the_angle_it_stalled_at() ->
                         density=1106.5149542573067, g1=0.21149751227192837,
                         tau1=2.548873360971311, mu=0.5734666394557012)
     outcome = run_probes(single_block("cube", 0.019779186265348782, material),
-                         ProbeConfig(hold=3.0, hold_time_scale=1.0), keep_traces=True)
+                         REAL_TIME_PROBES, keep_traces=True)
     tr = outcome.traces["relaxation"]
     assert tr["theta_cmd"].max() - tr["theta_cmd"][-1] > 1e-5  # stalled below a command
     assert outcome.visco_valid, outcome.warnings
