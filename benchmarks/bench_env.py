@@ -67,6 +67,8 @@ def main() -> None:
                     help="relaxation probe hold [s] (default: the env's)")
     ap.add_argument("--probe-time-scale", type=float, default=None,
                     help="relaxation probe hold's quasi-static time scale (default: the env's)")
+    ap.add_argument("--fetch-timestep", type=float, default=None,
+                    help="the fetch's physics step [s] (default: the env's 5 ms)")
     ap.add_argument("--no-workers", action="store_true", help="skip the 2-worker run")
     args = ap.parse_args()
     kwargs: dict = {"estimator": args.estimator}
@@ -74,6 +76,8 @@ def main() -> None:
         kwargs["probe_hold"] = args.probe_hold
     if args.probe_time_scale is not None:
         kwargs["probe_time_scale"] = args.probe_time_scale
+    if args.fetch_timestep is not None:
+        kwargs["fetch_timestep"] = args.fetch_timestep
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"machine: {platform.machine()} {os.cpu_count()} cores (load average {load:.1f} at "
           f"start), python {platform.python_version()}, mujoco {mujoco.__version__}; "

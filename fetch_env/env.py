@@ -195,6 +195,7 @@ _COMMON_DOC = """
     | probe_time_scale | 8.0 | relaxation hold's quasi-static time scale, 1-50 (1: real time) |
     | probe_time_growth | 0.05 | least share of the hold's elapsed time a scaled step stands for |
     | contact_timeconst | 0.01 | contacts' time constant [s] (see Geometry.contact_timeconst) |
+    | fetch_timestep | 0.005 | the fetch's physics step [s], 0.001-0.01 (probes keep their own) |
     | render_mode | None | None, "rgb_array", "rgb_array_list" or "human" |
     | width | 480 | frame width [px] |
     | height | 360 | frame height [px] |
@@ -205,6 +206,13 @@ _COMMON_DOC = """
     lift (use it with ``gymnasium.wrappers.RecordVideo`` to see the fetch); blades and stage
     are exact, pieces are moved rigidly toward where the run left them (``fetch_env.render``).
 
+    ``fetch_timestep`` trades fidelity for speed in multi-piece scenes, and not reliably: at
+    0.01 a 9-piece diced fetch at 0.085 rad ran 3.4x real time against 1.3x (median of 5
+    mixes), but the Diced env with random actions gained 0.71 -> 0.93 episodes/s over 24
+    episodes (and lost, 0.98 -> 0.76, over 8); on 20 diced mixes 88 % of the pieces ended
+    fetched or not as at a 2.5 ms step, against 95 % at the default 5 ms, and twice as many
+    mixes crushed a soft die (``benchmarks/bench_step_size.py``, ``docs/env_results.md``).
+
     ## Version history
     - v0: first release (one fetch per episode, reset probes, model/oracle/none estimator).
       Revised in place before any tagged release: the relaxation probe's contact stiffened
@@ -213,7 +221,8 @@ _COMMON_DOC = """
       steps log-spaced, its impratio 30 and the slip probe at a 10 ms step (session 12).
       The observations of a seed changed with each (``probe_hold=3, probe_time_scale=1,
       probe_time_growth=0`` gives session 9's relaxation hold back; the probes' scene
-      settings are ``ProbeConfig`` fields, not kwargs).
+      settings are ``ProbeConfig`` fields, not kwargs).  The ``fetch_timestep`` kwarg was
+      added in session 14 (its default is the base scene's 5 ms step: nothing changed).
 """
 
 
@@ -265,6 +274,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         probe_time_scale: float = 8.0,
         probe_time_growth: float = 0.05,
         contact_timeconst: float = 0.01,
+        fetch_timestep: float = 0.005,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -296,6 +306,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         require(1 <= probe_time_scale <= 50, "probe_time_scale", probe_time_scale, "in [1, 50]")
         require(0 <= probe_time_growth <= 0.5, "probe_time_growth", probe_time_growth,
                 "in [0, 0.5]")
+        require(math.isfinite(fetch_timestep) and 0.001 <= fetch_timestep <= 0.01,
+                "fetch_timestep", fetch_timestep, "in [0.001, 0.01] s")
 
         self.layout = layout
         self.estimator = estimator
@@ -315,6 +327,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
                                         hold_time_scale=probe_time_scale,
                                         hold_time_growth=probe_time_growth)
         self.geometry = Geometry(contact_timeconst=contact_timeconst)  # validates it
+        self.fetch_timestep = float(fetch_timestep)
         self.render_mode = render_mode
         self.width, self.height, self.camera = width, height, camera
 
@@ -438,7 +451,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
 
     # ---------------------------------------------------------------- internals
     def _sim_for(self, pieces: tuple[Piece, ...]) -> FetchSimulator:
-        return self._sims.get_or(pieces, lambda: FetchSimulator(pieces, self.geometry))
+        return self._sims.get_or(pieces, lambda: FetchSimulator(pieces, self.geometry,
+                                                                timestep=self.fetch_timestep))
 
     def _get_renderer(self) -> EpisodeRenderer:
         if self._renderer is None:

@@ -257,6 +257,25 @@ def test_step_is_the_simulator_s_fetch_and_reward_is_the_sum_of_its_terms() -> N
         assert key in info
 
 
+def test_fetch_timestep_defaults_to_the_base_scene_step_and_sets_the_fetch_s_step() -> None:
+    from fetch_env.layouts import single_block
+    from fetch_env.scene import build_scene
+
+    # The kwarg's default repeats the base MJCF's step: they must not drift apart.
+    assert FoodFetchEnv().fetch_timestep == build_scene(single_block()).model.opt.timestep
+    env = make(fetch_timestep=0.01)
+    env.reset(options={"preset": "block"})
+    _, _, _, _, info = env.step(GENTLE)
+    applied = info["action_applied"]
+    direct = FetchSimulator(preset_scene("block"), timestep=0.01).run("fetch", FetchAction(
+        theta_d=applied["theta_d"], omega=applied["omega"], lift_speed=applied["lift_speed"],
+        hold=CHEAP["hold"], lift_height=0.005, air_hold=CHEAP["air_hold"],
+        settle=CHEAP["settle"]))
+    assert direct.timestep == 0.01
+    for k, v in direct.traces.items():
+        np.testing.assert_array_equal(info["traces"][k], v)
+
+
 def test_fetch_by_mass_uses_the_mass_share() -> None:
     env = make(fetch_by_mass=True, fetch_weight=2.0)
     env.reset(options={"preset": "row-1mm"})
@@ -414,6 +433,8 @@ def test_bad_input_gives_clear_errors() -> None:
         gym.make("FoodFetch-Block-v0", deformation_weight=-1.0)
     with pytest.raises(InvalidParameterError, match=r"contact_timeconst.*1e-05"):
         gym.make("FoodFetch-Block-v0", contact_timeconst=1e-5)
+    with pytest.raises(InvalidParameterError, match=r"fetch_timestep.*0.05"):
+        gym.make("FoodFetch-Block-v0", fetch_timestep=0.05)
     env = make()
     with pytest.raises(RuntimeError, match="reset"):
         env.unwrapped.simulate_action(GENTLE)

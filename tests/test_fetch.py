@@ -15,10 +15,16 @@ from fetch_env.layouts import Piece, single_block
 from fetch_env.materials import Material
 from fetch_env.scene import build_scene, initial_state
 
+# Largest and 99th-percentile servo error [rad] per physics step: the ramp's corners cost one
+# step's servo transient.  10 ms is the env's optional ``fetch_timestep``; measured there:
+# 3.4e-4 and 9e-5 rad, and the weight within 0.004 % on average, samples within 2.2 %.
+SERVO_ERROR_BOUNDS = {0.005: (2e-4, 5e-5), 0.01: (5e-4, 2e-4)}
 
-@pytest.fixture(scope="module")
-def fetch_result():
-    return FetchSimulator(single_block()).run("fetch", FetchAction(theta_d=0.045, hold=0.5))
+
+@pytest.fixture(scope="module", params=sorted(SERVO_ERROR_BOUNDS), ids=lambda dt: f"{dt}s")
+def fetch_result(request):
+    return FetchSimulator(single_block(), timestep=request.param).run(
+        "fetch", FetchAction(theta_d=0.045, hold=0.5))
 
 
 def test_soft_cube_is_fetched_and_its_weight_hangs_on_the_end_effector(fetch_result) -> None:
@@ -42,8 +48,26 @@ def test_soft_cube_is_fetched_and_its_weight_hangs_on_the_end_effector(fetch_res
 def test_commanded_angle_is_the_real_angle(fetch_result) -> None:
     tr = fetch_result.traces
     err = np.abs(tr["theta"] - tr["theta_cmd"])
-    assert err.max() < 2e-4  # rad, anywhere (the ramp's corners: one 5 ms servo transient)
-    assert np.percentile(err, 99) < 5e-5  # rad, under the clamping load
+    largest, p99 = SERVO_ERROR_BOUNDS[fetch_result.timestep]
+    assert err.max() < largest  # rad, anywhere (the ramp's corners: one step's transient)
+    assert np.percentile(err, 99) < p99  # rad, under the clamping load
+
+
+@pytest.mark.parametrize("timestep", [0.005, 0.01])
+def test_a_diced_mix_s_fetched_pieces_hang_their_weight_on_the_end_effector(
+        timestep: float) -> None:
+    """Statics in a multi-piece scene: in the air the end-effector carries exactly the pieces
+    counted as fetched.  Measured on mix 6 (9 pieces, 3 fetched): 1.00002 at 5 ms, 0.99992
+    at 10 ms."""
+    from fetch_env.layouts import diced_mix
+
+    pieces = diced_mix(np.random.default_rng(6))
+    r = FetchSimulator(pieces, timestep=timestep).run("fetch", FetchAction(theta_d=0.085))
+    fetched = sum(p.mass for p, q in zip(pieces, r.pieces, strict=True) if q["fetched"])
+    assert fetched > 0
+    air = r.traces["phase"] == PHASE_CODE["air"]
+    fz = r.traces["force"][air][-20:, 2]  # the last 0.2 s: swinging settled
+    np.testing.assert_allclose(fz.mean(), -fetched * 9.81, rtol=0.01)
 
 
 def test_the_motor_stalls_at_its_stall_moment_and_holds_there() -> None:
