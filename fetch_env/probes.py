@@ -93,13 +93,12 @@ HOLD_SKIP = 0.1  # [s] start of the relaxation hold left out of the fit (servo c
 HOLD_SETTLE = 0.25
 CLAMP_WEIGHT = 0.3  # full fit: clamp residuals against the hold (docs/estimators_results.md)
 ENVELOPE_QUANTILE = 0.95  # slip probe: quantile of |F_t| / F_n taken as mu
-# [Hz] the slip probe's sampling: every step (at 5 ms, 200 Hz gave estimate_friction the 20
-# samples of a 0.15 s slide; at 100 Hz only the envelope could be used).  Seeds 5000-5191,
-# |mu error| median / 75th / 95th percentile / max, 5 ms step: 0.3 s slide at 100 Hz 0.2 /
-# 1.3 / 6.6 / 28 %; 0.2 s, 100 Hz 0.2 / 1.4 / 5.6 / 48 %; 0.15 s, 100 Hz 0.2 / 1.3 / 7.2 /
-# 34 %; 0.15 s, 200 Hz 0.1 / 1.0 / 4.9 / 24 % (session 11); at the 10 ms step, every step
-# (100 Hz): 0.1 / 1.2 / 4.6 / 13 % (session 12).
-SLIP_RECORD_HZ = 200.0
+# The slip probe is sampled at every physics step (run_probes; at 5 ms, 200 Hz gave
+# estimate_friction the 20 samples of a 0.15 s slide; at 100 Hz only the envelope could be
+# used).  Seeds 5000-5191, |mu error| median / 75th / 95th percentile / max, 5 ms step: 0.3 s
+# slide at 100 Hz 0.2 / 1.3 / 6.6 / 28 %; 0.2 s, 100 Hz 0.2 / 1.4 / 5.6 / 48 %; 0.15 s,
+# 100 Hz 0.2 / 1.3 / 7.2 / 34 %; 0.15 s, 200 Hz 0.1 / 1.0 / 4.9 / 24 % (session 11); at the
+# 10 ms step, every step (100 Hz): 0.1 / 1.2 / 4.6 / 13 % (session 12).
 
 
 @dataclass(frozen=True)
@@ -371,7 +370,10 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     k = probe_piece_index(pieces)
     piece = dataclasses.replace(pieces[k], x=0.0, y=0.0)
     sim = FetchSimulator((piece,), geometry, impratio=config.relaxation_impratio)
-    slip_sim = FetchSimulator((piece,), geometry, record_hz=SLIP_RECORD_HZ,
+    # every step (and at least the simulator's 100 Hz); a fixed 200 Hz meant every step at
+    # 10 ms only because the recorder never samples less often than each step
+    slip_sim = FetchSimulator((piece,), geometry,
+                              record_hz=max(100.0, 1.0 / config.slip_timestep),
                               timestep=config.slip_timestep)
     est = dict.fromkeys(PARAM_NAMES, math.nan)
     warnings: list[str] = []

@@ -241,8 +241,7 @@ def hold_relaxation() -> tuple[float, float]:
     became a 6 s time-scaled hold in session 11).
     """
     material = STIFF_SPHERE[0].material
-    outcome = run_probes(STIFF_SPHERE, REAL_TIME_PROBES,
-                         keep_traces=True)
+    outcome = run_probes(STIFF_SPHERE, REAL_TIME_PROBES, keep_traces=True)
     tr = outcome.traces["relaxation"]
     action = outcome.details["relaxation_action"]
     t = tr["t"] - action["settle"]  # from the clamp start
