@@ -8,12 +8,19 @@ which MuJoCo warned (an under-converged effective-metric solve, say), the mean
 fetch rate and the median real-time factor (with ``--workers`` > 1 the runs share the
 machine: read the speed from ``bench_simulator.py``).
 
-Run: python benchmarks/bench_step_size.py [--seeds 20] [--workers 2]
+How much agreement to expect at all: with ``--twins`` every step is also run on the same mix
+with each piece moved 1 nm along x (a seeded sign per piece), a change far below anything
+physical.  A twin's agreement with its own step's run is that step's chaos floor: what the
+contact events' sensitivity alone reorders, with no change to the physics.
+
+Run: python benchmarks/bench_step_size.py [--seeds 20] [--workers 2] [--twins] [--json FILE]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
 import os
 import platform
 import statistics
@@ -26,14 +33,21 @@ from fetch_env.controller import FetchAction, FetchSimulator
 from fetch_env.layouts import diced_mix
 
 CRUSHED_LOG_STRAIN = 1.0  # above it a piece's one-cell flex has inverted (README, "Crushed")
+TWIN_SHIFT = 1e-9  # [m] how far a twin's pieces are moved: physically nothing
 
 
-def run_mix(seed: int, steps: tuple[float, ...], theta_d: float) -> list[dict]:
-    """One seeded diced mix (6-12 pieces), fetched once at each step."""
-    pieces = diced_mix(np.random.default_rng(seed))
+def run_mix(seed: int, steps: tuple[float, ...], theta_d: float,
+            twins: bool = False) -> list[dict]:
+    """One seeded diced mix (6-12 pieces), fetched once at each step (then, with ``twins``,
+    once more at each step with every piece moved by ``TWIN_SHIFT``)."""
+    rng = np.random.default_rng(seed)
+    pieces = diced_mix(rng)
+    signs = rng.choice([-1.0, 1.0], size=len(pieces))
+    moved = tuple(dataclasses.replace(p, x=p.x + s * TWIN_SHIFT)
+                  for p, s in zip(pieces, signs, strict=True))
     out = []
-    for dt in steps:
-        r = FetchSimulator(pieces, timestep=dt).run("fetch", FetchAction(theta_d=theta_d))
+    for dt, layout in [(dt, pieces) for dt in steps] + [(dt, moved) for dt in steps if twins]:
+        r = FetchSimulator(layout, timestep=dt).run("fetch", FetchAction(theta_d=theta_d))
         out.append({"fetched": [bool(p["fetched"]) for p in r.pieces],
                     "log_strain": max(max(p["max_log_strain_clamp"], p["max_log_strain_lift"])
                                       for p in r.pieces),
@@ -52,9 +66,14 @@ def main() -> None:
                    default=(0.0025, 0.005, 0.01), help="physics steps [s]; the first is the "
                    "reference (default 0.0025,0.005,0.01)")
     p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--twins", action="store_true",
+                   help="also run each step with the pieces moved 1 nm (the chaos floor)")
+    p.add_argument("--json", metavar="FILE", help="also write every run's outcome here")
     args = p.parse_args()
     if args.seeds < 1 or args.workers < 1 or len(args.steps) < 2:
         p.error("--seeds and --workers must be >= 1 and --steps must name at least two steps")
+    if args.json and not os.path.isdir(os.path.dirname(os.path.abspath(args.json))):
+        p.error(f"--json {args.json}: no such directory")
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     print(f"machine: {platform.machine()} {platform.processor()}, {os.cpu_count()} cores, "
           f"python {platform.python_version()}, mujoco {mujoco.__version__}; "
@@ -62,19 +81,39 @@ def main() -> None:
           f"{args.workers} worker(s)")
     with ProcessPoolExecutor(args.workers) as pool:
         runs = list(pool.map(run_mix, seeds, [args.steps] * len(seeds),
-                             [args.theta_d] * len(seeds)))
+                             [args.theta_d] * len(seeds), [args.twins] * len(seeds)))
     n_pieces = sum(len(r[0]["fetched"]) for r in runs)
-    for k, dt in enumerate(args.steps):
-        agree = sum(sum(a == b for a, b in zip(r[0]["fetched"], r[k]["fetched"], strict=True))
+
+    def rate_shift(k: int, ref: int) -> str:
+        """Mean fetch-rate difference over the mixes, paired, with its standard error."""
+        diff = [r[k]["fetch_rate"] - r[ref]["fetch_rate"] for r in runs]
+        se = statistics.stdev(diff) / len(diff) ** 0.5 if len(diff) > 1 else float("nan")
+        return f"fetch rate {statistics.mean(diff):+.3f} +- {se:.3f}"
+
+    def agreement(k: int, ref: int) -> str:
+        agree = sum(sum(a == b for a, b in zip(r[ref]["fetched"], r[k]["fetched"], strict=True))
                     for r in runs)
-        whole = sum(r[0]["fetched"] == r[k]["fetched"] for r in runs)
+        whole = sum(r[ref]["fetched"] == r[k]["fetched"] for r in runs)
+        return f"{agree}/{n_pieces} ({agree / n_pieces:.1%}), whole mixes {whole:2d}/{len(runs)}"
+
+    n = len(args.steps)
+    labels = [f"{dt * 1000:5.2f} ms" for dt in args.steps]
+    labels += [f"{dt * 1000:5.2f} ms, pieces moved 1 nm" for dt in args.steps] if args.twins else []
+    for k, label in enumerate(labels):
         crushed = sum(r[k]["log_strain"] > CRUSHED_LOG_STRAIN for r in runs)
         warned = sum(r[k]["warned"] for r in runs)
-        label = "reference" if k == 0 else f"agree {agree}/{n_pieces} ({agree / n_pieces:.1%})"
-        print(f"step {dt * 1000:5.2f} ms  {label:24s} whole mixes {whole:2d}/{len(runs)}  "
-              f"crushed {crushed:2d}  MuJoCo warnings {warned:2d}  mean fetch rate "
-              f"{statistics.mean(r[k]['fetch_rate'] for r in runs):.3f}  median "
-              f"{statistics.median(r[k]['realtime'] for r in runs):5.2f}x real time")
+        vs_ref = ("reference" if k == 0 else
+                  f"agree with reference {agreement(k, 0)}, {rate_shift(k, 0)}")
+        print(f"step {label}: {vs_ref}; crushed {crushed}, MuJoCo warnings {warned}, mean "
+              f"fetch rate {statistics.mean(r[k]['fetch_rate'] for r in runs):.3f}, median "
+              f"{statistics.median(r[k]['realtime'] for r in runs):.2f}x real time")
+        if k >= n:  # a twin: its agreement with its own step's run is the chaos floor
+            print(f"    chaos floor (with the unmoved run at the same step): {agreement(k, k - n)}"
+                  f", {rate_shift(k, k - n)}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"seeds": list(seeds), "theta_d": args.theta_d, "runs": labels,
+                       "mixes": runs}, f)
 
 
 if __name__ == "__main__":

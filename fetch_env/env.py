@@ -209,9 +209,10 @@ _COMMON_DOC = """
     ``fetch_timestep`` trades fidelity for speed in multi-piece scenes, and not reliably: at
     0.01 a 9-piece diced fetch at 0.085 rad ran 3.4x real time against 1.3x (median of 5
     mixes), but the Diced env with random actions gained 0.71 -> 0.93 episodes/s over 24
-    episodes (and lost, 0.98 -> 0.76, over 8); on 20 diced mixes 88 % of the pieces ended
-    fetched or not as at a 2.5 ms step, against 95 % at the default 5 ms, and twice as many
-    mixes crushed a soft die (``benchmarks/bench_step_size.py``, ``docs/env_results.md``).
+    episodes (and lost, 0.98 -> 0.76, over 8); on 40 diced mixes 86 % of the pieces ended
+    fetched or not as at a 2.5 ms step, against 92 % at the default 5 ms and a 93 % chaos
+    floor (the 2.5 ms run against itself with every piece moved 1 nm), and 2-3x as many mixes
+    crushed a soft die (``benchmarks/bench_step_size.py --twins``, ``docs/env_results.md``).
 
     ## Version history
     - v0: first release (one fetch per episode, reset probes, model/oracle/none estimator).
