@@ -98,8 +98,8 @@ def main() -> None:
 
     n = len(args.steps)
     labels = [f"{dt * 1000:5.2f} ms" for dt in args.steps]
-    moved = f"pieces moved {TWIN_SHIFT * 1e9:g} nm"
-    labels += [f"{dt * 1000:5.2f} ms, {moved}" for dt in args.steps] if args.twins else []
+    twin_label = f"pieces moved {TWIN_SHIFT * 1e9:g} nm"
+    labels += [f"{dt * 1000:5.2f} ms, {twin_label}" for dt in args.steps] if args.twins else []
     for k, label in enumerate(labels):
         crushed = sum(r[k]["log_strain"] > CRUSHED_LOG_STRAIN for r in runs)
         warned = sum(r[k]["warned"] for r in runs)
