@@ -4,7 +4,11 @@ Two bare loops step the same compiled model for the same number of steps with th
 commands (so the blades close and the contacts form), timing mj_step alone: one without the
 Prony relaxation (purely elastic food: a different, cheaper trajectory), one with it applied
 untimed (the fetch's own states).  The second ratio is the cost of everything this project
-adds to MuJoCo: Prony relaxation, sensor readout, strain meter, recording.
+adds to MuJoCo: Prony relaxation, sensor readout, strain meter, recording.  The third splits
+one fetch itself: its wall time over the time spent inside its own mj_step calls.  It measures
+the same overhead as the second without comparing two runs, so the VM's drift between runs
+(this shared machine's speed varies by a third from day to day, and within a sitting) does
+not enter it.
 
 Run: python benchmarks/bench_simulator.py   (medians of 5 runs; one core)
 """
@@ -56,25 +60,50 @@ def bare_loop(sim: FetchSimulator, action: FetchAction, prony: bool = False) -> 
     return stepping
 
 
+def in_run_ratio(sim: FetchSimulator, action: FetchAction) -> float:
+    """One fetch's wall time over the time spent inside its own ``mj_step`` calls.
+
+    ``mujoco.mj_step`` is wrapped with a timer for this one run (the simulator looks it up at
+    each call); the wrapper's own ~0.3 us a step counts as overhead, so the ratio errs high.
+    """
+    inner = mujoco.mj_step
+    spent = 0.0
+
+    def timed(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        nonlocal spent
+        t = time.perf_counter()
+        inner(m, d)
+        spent += time.perf_counter() - t
+
+    mujoco.mj_step = timed
+    try:
+        r = sim.run("fetch", action)
+    finally:
+        mujoco.mj_step = inner
+    return r.wall_time / spent
+
+
 def bench(name: str, pieces, action: FetchAction, repeats: int = 5,
           timestep: float | None = None) -> dict[str, float]:
     sim = FetchSimulator(pieces, timestep=timestep)
     sim.run("fetch", action)  # compile and warm up
-    walls, bares, visco = [], [], []
+    walls, bares, visco, in_run = [], [], [], []
     for _ in range(repeats):  # interleaved, so load changes hit all alike
         r = sim.run("fetch", action)
         walls.append(r.wall_time)
         bares.append(bare_loop(sim, action))
         visco.append(bare_loop(sim, action, prony=True))
+        in_run.append(in_run_ratio(sim, action))
     wall, bare = statistics.median(walls), statistics.median(bares)
     n, dt = r.n_steps, r.timestep
     ratio = statistics.median(w / b for w, b in zip(walls, bares, strict=True))
     ratio_visco = statistics.median(w / b for w, b in zip(walls, visco, strict=True))
+    ratio_in_run = statistics.median(in_run)
     print(f"{name:26s} {n * dt / wall:6.1f}x real time  {n / wall:7.0f} steps/s  "
           f"bare mj_step {n / bare:7.0f} steps/s  ratio {ratio:4.2f}  "
-          f"ratio to mj_step on the same states {ratio_visco:4.2f}")
+          f"ratio to mj_step on the same states {ratio_visco:4.2f}  in-run {ratio_in_run:4.2f}")
     return {"realtime": n * dt / wall, "steps_per_s": n / wall, "ratio": ratio,
-            "ratio_visco": ratio_visco}
+            "ratio_visco": ratio_visco, "ratio_in_run": ratio_in_run}
 
 
 if __name__ == "__main__":
@@ -95,4 +124,5 @@ if __name__ == "__main__":
         print(f"{'9-piece diced mix' + label + ', median':26s} "
               f"{statistics.median(r['realtime'] for r in rows):6.1f}x real time  "
               f"ratio {statistics.median(r['ratio'] for r in rows):4.2f}  ratio to mj_step on "
-              f"the same states {statistics.median(r['ratio_visco'] for r in rows):4.2f}")
+              f"the same states {statistics.median(r['ratio_visco'] for r in rows):4.2f}  "
+              f"in-run {statistics.median(r['ratio_in_run'] for r in rows):4.2f}")
