@@ -25,7 +25,8 @@ import numpy as np
 
 from fetch_env.errors import InvalidParameterError, SimulationDivergedError, require, require_finite
 from fetch_env.layouts import Piece
-from fetch_env.metrics import BladeOverlap, PiecePositions, StrainMeter, residual_plastic_strain
+from fetch_env.metrics import residual_plastic_strain
+from fetch_env.recording import TraceRecorder
 from fetch_env.scene import (
     MIN_CONTACT_TIMECONST,
     Geometry,
@@ -34,7 +35,6 @@ from fetch_env.scene import (
     initial_state,
     simulated_young,
 )
-from fetch_env.sensors import ContactSensors
 from fetch_env.viscoelastic import PronyRelaxation
 
 Experiment = Literal["fetch", "relaxation", "slip"]
@@ -431,34 +431,27 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     metered = metered.tolist()
     prony = PronyRelaxation(scene)
     prony.reset(d)
-    strain = StrainMeter(scene, d)
 
     q_open = scene.pose.theta_open
     servos = [ids["servo_left"], ids["servo_right"]]
     lift_act = ids["servo_lift"]
     hinge_q = [m.jnt_qposadr[ids["hinge_left"]], m.jnt_qposadr[ids["hinge_right"]]]
     hinge_v = [m.jnt_dofadr[ids["hinge_left"]], m.jnt_dofadr[ids["hinge_right"]]]
-    sensors = ContactSensors(scene)
     lift_q = m.jnt_qposadr[ids["lift"]]
     ctrl_hinge, ctrl_lift = servo_commands(scene, profile)
 
     n_rec = sum(record)
-    rec = {k: np.zeros(n_rec) for k in ("t", "theta", "theta_cmd", "moment_left",
-                                         "moment_right", "normal_left", "tangential_left",
-                                         "normal_right", "tangential_right", "lift",
-                                         "blade_overlap")}
-    rec["force"] = np.zeros((n_rec, 3))
+    rec = {k: np.zeros(n_rec) for k in ("t", "theta", "theta_cmd", "lift")}
     rec["phase"] = np.zeros(n_rec, dtype=np.int8)
-    le_trace = np.zeros((n_rec, len(scene.pieces)))
-    lowest_z = np.full(len(scene.pieces), np.inf)  # lowest vertex over the run: plate pass-through
+    # the sensors, strain, blade overlap and lowest vertex: raw state in the loop, the
+    # meters over batches of samples (recording.py says why)
+    recorder = TraceRecorder(scene, d, n_rec)
     bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
 
     def fail(why: str) -> SimulationDivergedError:
         return SimulationDivergedError(f"{why} at t={d.time:.4f} s in {experiment}",
                                        scene.describe(), action.to_dict())
 
-    overlap = BladeOverlap(scene)
-    positions = PiecePositions(scene)
     # Views into MjData, fetched once: attribute access costs more than the arithmetic here.
     qpos, qfrc_constraint, ctrl = d.qpos, d.qfrc_constraint, d.ctrl
     bad_qacc_count = d.warning[bad_qacc]
@@ -506,33 +499,28 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
                 # what the motor is told: the profile within the end stop, held where it stalled
                 rec["theta_cmd"][r] = min(theta_told[min(i + 1, n - 1)], stall_cap - q_open)
                 rec["lift"][r] = qpos[lift_q]
-                reading = sensors.read(d)
-                rec["moment_left"][r], rec["moment_right"][r] = reading["moment"]
-                rec["normal_left"][r], rec["normal_right"][r] = reading["normal"]
-                rec["tangential_left"][r], rec["tangential_right"][r] = reading["tangential"]
-                rec["force"][r] = reading["force"]
-                if metered[i]:
-                    rec["blade_overlap"][r] = overlap(d)
-                    np.minimum(lowest_z, positions.lowest(d), out=lowest_z)
-                else:  # (never the first sample: step 0 is metered)
-                    rec["blade_overlap"][r] = rec["blade_overlap"][r - 1]
-                if metered[i] and (moved or r == 0):
-                    le_trace[r] = strain.piece_strain(d)
+                # (step 0 is metered, and its strain fresh)
+                fresh = metered[i] and (moved or r == 0)
+                recorder.sample(metered[i], fresh)
+                if fresh:
                     moved = False
-                else:
-                    le_trace[r] = le_trace[r - 1]
                 if observer is not None:
                     observer(d)
                 r += 1
     finally:
         prony.restore()  # the model's compiled rest shape, for the next run
+    readings, rec["blade_overlap"], le_trace = recorder.finish()  # (timed: part of the run)
     wall = time.perf_counter() - wall
+    for k in ("moment", "normal", "tangential"):
+        rec[f"{k}_left"], rec[f"{k}_right"] = readings[k].T
+    rec["force"] = readings["force"]
+    lowest_z = recorder.lowest_z
     if not np.isfinite(d.qpos).all():
         raise fail("non-finite state")
     warned = {mujoco.mjtWarning(k).name: int(w.number) for k, w in enumerate(d.warning)
               if w.number}
 
-    low, centre = positions(d)
+    low, centre = recorder.positions(d)
     masses = np.array([p.mass for p in scene.pieces])
     half_gap = _blade_half_gap(scene, d)
     stage_y = scene.pose.stage_xy[1]

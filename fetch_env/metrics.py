@@ -35,8 +35,8 @@ class StrainMeter:
     For each element the deformation gradient is ``F = D_s D_m^{-1}`` (current and rest edge
     matrices); LE is the largest ``|log lambda_i|`` over its principal stretches (the singular
     values of F), as ABAQUS reports LE.  ``F`` is linear in the vertex positions, so every
-    element's ``F`` comes from one sparse matrix-vector product (``scipy.sparse``): this runs
-    at every recorded sample.
+    element's ``F`` comes from one sparse matrix product (``scipy.sparse``), for a whole stack
+    of samples at once (:class:`fetch_env.recording.TraceRecorder` meters a run in batches).
     """
 
     def __init__(self, scene: Scene, rest: mujoco.MjData) -> None:
@@ -71,20 +71,31 @@ class StrainMeter:
             shape=(9 * n_el, n_cols))
 
     def element_strain(self, data: mujoco.MjData) -> np.ndarray:
-        """LE of every element, shape (E,).
+        """LE of every element now, shape (E,)."""
+        return self.element_strain_of(data.flexvert_xpos[None])[0]
+
+    def element_strain_of(self, xpos: np.ndarray) -> np.ndarray:
+        """LE of every element for a stack of vertex positions (S, V, 3): shape (S, E).
 
         The principal stretches are the square roots of the eigenvalues of C = F^T F, so
         LE = max |log lambda| = 0.5 max(|log c_min|, |log c_max|), which for
         c_min <= c_max is 0.5 log max(c_max, 1 / c_min) (one log instead of two).
         """
-        F = (self.B @ data.flexvert_xpos.ravel()).reshape(-1, 3, 3)
+        n_samples = xpos.shape[0]
+        F = (self.B @ xpos.reshape(n_samples, -1).T).T.reshape(-1, 3, 3)
         c_min, c_max = extreme_eigenvalues(F.transpose(0, 2, 1) @ F)
         # (a degenerate, crushed element can give c_min <= 0: 1e-24 caps its LE at ~27.6)
-        return 0.5 * np.log(np.maximum(c_max, 1.0 / np.maximum(c_min, 1e-24)))
+        le = 0.5 * np.log(np.maximum(c_max, 1.0 / np.maximum(c_min, 1e-24)))
+        return le.reshape(n_samples, -1)
 
     def piece_strain(self, data: mujoco.MjData) -> np.ndarray:
-        """Max LE over each piece's elements, shape (P,)."""
-        return np.maximum.reduceat(self.element_strain(data), self.first)
+        """Max LE over each piece's elements now, shape (P,)."""
+        return self.piece_strain_of(data.flexvert_xpos[None])[0]
+
+    def piece_strain_of(self, xpos: np.ndarray) -> np.ndarray:
+        """Max LE over each piece's elements for a stack of vertex positions (S, V, 3):
+        shape (S, P)."""
+        return np.maximum.reduceat(self.element_strain_of(xpos), self.first, axis=1)
 
 
 class PiecePositions:
@@ -98,9 +109,10 @@ class PiecePositions:
         self.first = np.concatenate([[0], np.cumsum(num)[:-1]])
         self.num = num
 
-    def lowest(self, data: mujoco.MjData) -> np.ndarray:
-        """Lowest vertex height of each piece, (P,): the per-sample plate pass-through check."""
-        return np.minimum.reduceat(data.flexvert_xpos[self.verts, 2], self.first)
+    def lowest_of(self, xpos: np.ndarray) -> np.ndarray:
+        """Lowest vertex height of each piece for a stack of vertex positions (S, V, 3),
+        shape (S, P): the per-sample plate pass-through check."""
+        return np.minimum.reduceat(xpos[:, self.verts, 2], self.first, axis=1)
 
     def __call__(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         v = data.flexvert_xpos[self.verts]
@@ -136,11 +148,12 @@ class BladeOverlap:
         self.half = m.geom_size[self.geoms][:, None, :]  # (2, 1, 3)
         self.inward = np.array([1.0, -1.0])[:, None]  # inner face at local +y (left), -y
 
-    def __call__(self, data: mujoco.MjData) -> float:
-        # vertices in each blade's frame, (2, V, 3)
-        local = (data.flexvert_xpos - data.geom_xpos[self.geoms, None]) @ data.geom_xmat[
-            self.geoms].reshape(2, 3, 3)
+    def of(self, xpos: np.ndarray, blade_pos: np.ndarray, blade_mat: np.ndarray) -> np.ndarray:
+        """Per sample, shape (S,): vertex positions (S, V, 3) and the blades' ``geom_xpos``
+        (S, 2, 3) and ``geom_xmat`` (S, 2, 9) rows at each sample."""
+        # vertices in each blade's frame, (S, 2, V, 3)
+        local = (xpos[:, None] - blade_pos[:, :, None]) @ blade_mat.reshape(-1, 2, 3, 3)
         half = self.half
         inside = (np.abs(local[..., 0]) <= half[..., 0]) & (np.abs(local[..., 2]) <= half[..., 2])
         depth = half[..., 1] - self.inward * local[..., 1]
-        return float(np.max(depth, where=inside, initial=0.0))
+        return np.max(depth, axis=(1, 2), where=inside, initial=0.0)
