@@ -53,8 +53,26 @@ def finite(kind: type = float):
     return parse
 
 
+MAX_SEED = 2**32 - 1  # numpy's and gymnasium's seeds are unsigned 32-bit
+
+
+def seed(text: str) -> int:
+    """A seed: an integer in [0, 2**32 - 1], as numpy and gymnasium accept it."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"{value} is not in [0, {MAX_SEED}]")
+    return value
+
+
 def writable(path: str) -> Path:
+    """A file path that can be written: a file name (not a directory) in an existing,
+    writable directory, checked when the command line is parsed, before any work."""
     p = Path(path)
+    if not p.name or p.name in (".", "..") or p.is_dir():
+        raise argparse.ArgumentTypeError(f"not a file name: {path!r}")
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
         raise argparse.ArgumentTypeError(f"directory does not exist: {str(parent)!r}")
@@ -100,7 +118,7 @@ def add_food_options(p: argparse.ArgumentParser) -> None:
     )
     for option, default, metavar, text in clamp:
         c.add_argument(option, type=finite(), default=default, metavar=metavar, help=text)
-    p.add_argument("--seed", type=finite(int), default=0, metavar="N",
+    p.add_argument("--seed", type=seed, default=0, metavar="N",
                    help="seed for every random choice (default: 0)")
 
 

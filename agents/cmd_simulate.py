@@ -42,7 +42,8 @@ def _build(args: argparse.Namespace) -> tuple[Any, Any]:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from fetch_env.controller import FetchSimulator
+    from fetch_env.controller import CLOSED_MARGIN, FetchSimulator
+    from fetch_env.scene import BLADE_HALF_THICKNESS
 
     pieces, action = _build(args)
     result = FetchSimulator(pieces).run(args.experiment, action)
@@ -69,6 +70,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         f"action            theta_d {action.theta_d:g} rad, omega {action.omega:g} rad/s, "
         f"lift {action.lift_speed * 1000:g} mm/s, hold {action.hold:g} s"
     )
+    extra = result.extra
+    if extra["stalled_at"] is not None:
+        print(f"                  the motor stalled at {extra['stalled_at']:.4f} rad "
+              "(its 2 N m stall moment): theta_d was not reached")
+    elif extra["theta_d_applied"] < action.theta_d:
+        print(f"                  theta_d capped at {extra['theta_d_applied']:.4f} rad: the end "
+              f"stop, {CLOSED_MARGIN:g} rad before the faces meet at "
+              f"{result.geometry['theta_closed']:.4f}")
     print(f"peak moment       {ml.max():.4f} / {mr.max():.4f} N m (left / right)")
     print(f"final moment      {ml[-1]:.4f} / {mr[-1]:.4f} N m")
     for k, p in enumerate(result.pieces):
@@ -76,6 +85,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             f"piece {k}           fetched {p['fetched']}, max LE clamp "
             f"{p['max_log_strain_clamp']:.3f}, lift {p['max_log_strain_lift']:.3f}"
         )
+        if p["passed_through"]:
+            print(f"                  PASSED THROUGH a blade or the plate (deepest vertex "
+                  f"{p['max_blade_overlap'] * 1000:.1f} mm into a blade, "
+                  f"{2000 * BLADE_HALF_THICKNESS:g} mm thick; lowest "
+                  f"{p['lowest_z_ever'] * 1000:.1f} mm): squeezed past what this simulator "
+                  "models, so its LE is no measurement and it is not counted fetched")
+    if extra["mujoco_warnings"]:
+        print(f"MuJoCo warnings   {extra['mujoco_warnings']}")
     print(f"fetch rate        {result.fetch_rate:.2f} (by mass {result.fetch_rate_mass:.2f})")
     print(
         f"speed             {tr['t'][-1] / result.wall_time:.1f}x real time "

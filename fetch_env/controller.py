@@ -28,6 +28,7 @@ from fetch_env.layouts import Piece
 from fetch_env.metrics import residual_plastic_strain
 from fetch_env.recording import TraceRecorder
 from fetch_env.scene import (
+    BLADE_HALF_THICKNESS,
     MIN_CONTACT_TIMECONST,
     Geometry,
     Scene,
@@ -276,6 +277,7 @@ class SimResult:
             "timestep": self.timestep,
             "n_steps": self.n_steps,
             "wall_time": self.wall_time,
+            "extra": self.extra,
         }
         if traces:
             out["traces"] = {k: v.tolist() for k, v in self.traces.items()}
@@ -528,6 +530,16 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
         fetched = (low > 0.5 * action.lift_height) & (np.abs(centre[:, 1] - stage_y) < half_gap)
     else:
         fetched = np.zeros(len(scene.pieces), dtype=bool)
+    # Passed through: a vertex got beyond a blade's or the plate's far face.  A very soft piece
+    # squeezed hard can get there (a blade's edge cuts into it and MuJoCo's box contact, past
+    # the mid-plane, pushes the vertex out of the far side), which a one-cell flex cannot
+    # represent: its LE is then no measurement and the piece is not really held, so it is
+    # reported as passed through and never counted fetched.  (A firm clamp's blade edge can
+    # indent a piece 2 mm deep without that: measured on a Block scene, LE 0.24, held.)
+    plate_thickness = 2.0 * float(m.geom_size[ids["plate"]][2])
+    passed = ((recorder.max_overlap > 2.0 * BLADE_HALF_THICKNESS)
+              | (lowest_z < -plate_thickness))
+    fetched &= ~passed
     phase = rec["phase"]
     in_clamp = np.isin(phase, [PHASE_CODE["clamp"], PHASE_CODE["hold"], PHASE_CODE["slide"]])
     in_lift = np.isin(phase, [PHASE_CODE["lift"], PHASE_CODE["air"]])
@@ -544,6 +556,8 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
             "final_centre": centre[k].tolist(),
             "final_lowest_z": float(low[k]),
             "lowest_z_ever": float(lowest_z[k]),
+            "max_blade_overlap": float(recorder.max_overlap[k]),
+            "passed_through": bool(passed[k]),
         })
     rec["max_log_strain"] = le_trace.max(axis=1)
     geometry = {**scene.pose.to_dict(),
@@ -559,7 +573,11 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
                "time_scale": None if time_scale is None else dataclasses.asdict(time_scale),
                "t_scaled": i_scaled * dt if i_scaled < n else None,
                "stalled_at": None if stall_cap == np.inf else float(stall_cap - q_open),
-               "max_blade_overlap": float(rec["blade_overlap"].max())})
+               "max_blade_overlap": float(rec["blade_overlap"].max()),
+               # the clamp angle the motor was told in the end: theta_d, or less where the
+               # end stop or a stall stopped it
+               "theta_d_applied": float(min(action.theta_d, end_stop, stall_cap - q_open)),
+               "passed_through": np.flatnonzero(passed).tolist()})
 
 
 def _blade_half_gap(scene: Scene, d: mujoco.MjData) -> float:

@@ -142,7 +142,8 @@ _COMMON_DOC = """
       with ``fetch_by_mass=True``); 0 when the simulation diverged.
     - ``reward_deformation = -deformation_weight * min(1, max(0, LE_max - safe_log_strain))``,
       LE_max the largest logarithmic strain of any piece during the clamp, hold and lift (the
-      study calls LE < 0.34 no large deformation).
+      study calls LE < 0.34 no large deformation); the whole ``-deformation_weight`` when a
+      piece passed through a blade or the plate (``info["passed_through"]``).
     - ``reward_time = -time_weight * (theta_d / omega + hold + lift_height / lift_speed)`` [s].
 
     ## Starting state
@@ -163,7 +164,8 @@ _COMMON_DOC = """
     ``probe_warnings``, ``pieces`` (scene description), ``hold``.
     step: also ``reward_fetch``, ``reward_deformation``, ``reward_time``, ``fetch_rate``,
     ``fetch_rate_mass``, ``max_log_strain``, ``is_success`` (every piece fetched and
-    LE_max <= safe_log_strain), ``pieces`` (per-piece outcome), ``action_applied`` (SI),
+    LE_max <= safe_log_strain), ``passed_through`` (a piece passed through a blade or the
+    plate), ``pieces`` (per-piece outcome), ``action_applied`` (SI),
     ``episode_time`` [s], ``traces`` (read-only mapping of 100 Hz arrays: t, phase, theta,
     theta_cmd, moment_left/right, normal_left/right, tangential_left/right, force (n, 3),
     lift, max_log_strain) and ``error`` when the physics diverged.
@@ -224,6 +226,10 @@ _COMMON_DOC = """
       probe_time_growth=0`` gives session 9's relaxation hold back; the probes' scene
       settings are ``ProbeConfig`` fields, not kwargs).  The ``fetch_timestep`` kwarg was
       added in session 14 (its default is the base scene's 5 ms step: nothing changed).
+      Session 16: a piece that passed through a blade or the plate (a very soft piece
+      squeezed hard: ``info["passed_through"]``) is no longer counted fetched and takes the
+      whole deformation penalty (it had been scored by its meaningless LE, and once counted
+      fetched while cut through by a blade).
 """
 
 
@@ -247,8 +253,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         "Fetch soft food with a two-half-spoon end-effector (any layout).",
         "A contextual bandit: the robot sees probe-estimated food properties and the layout, "
         "picks a clamp angle, clamping speed and lift speed, and is rewarded for the pieces it "
-        "lifts minus a penalty for squashing them. Reproduces the fetch of the study in "
-        "PAPER.md on MuJoCo (fetch_env.controller).", "block")
+        "lifts minus a penalty for squashing them. Reproduces the fetch of the study "
+        "(README.md) on MuJoCo (fetch_env.controller).", "block")
 
     metadata: ClassVar[dict[str, Any]] = {
         "render_modes": ["human", "rgb_array", "rgb_array_list"], "render_fps": 25}
@@ -531,7 +537,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
             result = None
             info.update(reward_fetch=0.0, reward_deformation=0.0, reward_time=reward_time,
                         fetch_rate=0.0, fetch_rate_mass=0.0, max_log_strain=None,
-                        is_success=False, pieces=[], traces=Traces({}), error=exc.one_line())
+                        is_success=False, passed_through=False, pieces=[], traces=Traces({}),
+                        error=exc.one_line())
             return float(reward_time), info, None
         assert result is not None
         le = max(max(p["max_log_strain_clamp"], p["max_log_strain_lift"])
@@ -539,13 +546,17 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         share = result.fetch_rate_mass if self.fetch_by_mass else result.fetch_rate
         reward_fetch = self.fetch_weight * float(share)
         # Capped at 1 unit of LE: beyond that the piece is crushed (or the contact failed) and
-        # a larger number would only add variance to the return.
-        reward_def = -self.deformation_weight * min(max(0.0, le - self.safe_log_strain), 1.0)
+        # a larger number would only add variance to the return.  A piece that passed through
+        # a blade or the plate was cut or crushed past what the simulator models (its LE is
+        # no measurement, and it is never counted fetched): the whole penalty.
+        passed = any(p["passed_through"] for p in result.pieces)
+        excess = 1.0 if passed else min(max(0.0, le - self.safe_log_strain), 1.0)
+        reward_def = -self.deformation_weight * excess
         info.update(reward_fetch=reward_fetch, reward_deformation=reward_def,
                     reward_time=reward_time, fetch_rate=float(result.fetch_rate),
                     fetch_rate_mass=float(result.fetch_rate_mass), max_log_strain=float(le),
                     is_success=bool(result.fetch_rate >= 1.0 and le <= self.safe_log_strain),
-                    pieces=result.pieces, traces=Traces(result.traces))
+                    passed_through=passed, pieces=result.pieces, traces=Traces(result.traces))
         return float(reward_fetch + reward_def + reward_time), info, result
 
     def _reset_info_copy(self) -> dict[str, Any]:

@@ -14,6 +14,8 @@ from typing import Any
 
 from fetch_env.errors import InvalidParameterError, require, require_finite
 
+DENSITY_LIMITS = (10.0, 5e4)  # [kg/m^3] accepted densities
+
 
 @dataclass(frozen=True)
 class Material:
@@ -22,7 +24,7 @@ class Material:
     Attributes:
         young: instantaneous Young's modulus E_0 [Pa]; 0.0123 MPa to 200 MPa are tested.
         poisson: Poisson's ratio nu, in [0, 0.5).
-        density: [kg/m^3].
+        density: [kg/m^3], in ``DENSITY_LIMITS`` (10 to 5e4).
         g1, tau1: first Prony term: relative modulus drop [-] in [0, 1) and time constant [s].
         extra_prony: further Prony terms as ``((g_2, tau_2), ...)``; sum of all g < 1.
         mu: Coulomb friction coefficient between half-spoon and food [-], applied exactly.
@@ -49,7 +51,10 @@ class Material:
         require(self.young > 0, "young", self.young, "> 0 Pa")
         require(self.young <= 1e10, "young", self.young, "<= 1e10 Pa")
         require(0 <= self.poisson < 0.5, "poisson", self.poisson, "in [0, 0.5)")
-        require(self.density > 0, "density", self.density, "> 0 kg/m^3")
+        # (foods are ~100-1500 kg/m^3; far lighter pieces fall below MuJoCo's least body mass
+        # and inertia, and the simulator is checked from 10 to 5e4 kg/m^3 at 6 and 25 mm)
+        require(DENSITY_LIMITS[0] <= self.density <= DENSITY_LIMITS[1], "density", self.density,
+                f"in [{DENSITY_LIMITS[0]:g}, {DENSITY_LIMITS[1]:g}] kg/m^3")
         require(0 <= self.g1 < 1, "g1", self.g1, "in [0, 1)")
         require(self.tau1 > 0, "tau1", self.tau1, "> 0 s")
         require(self.mu >= 0, "mu", self.mu, ">= 0")

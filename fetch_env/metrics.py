@@ -114,6 +114,10 @@ class PiecePositions:
         shape (S, P): the per-sample plate pass-through check."""
         return np.minimum.reduceat(xpos[:, self.verts, 2], self.first, axis=1)
 
+    def piece_max(self, per_vertex: np.ndarray) -> np.ndarray:
+        """Each piece's largest value of a per-vertex quantity (S, V): shape (S, P)."""
+        return np.maximum.reduceat(per_vertex[:, self.verts], self.first, axis=1)
+
     def __call__(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         v = data.flexvert_xpos[self.verts]
         low = np.minimum.reduceat(v[:, 2], self.first)
@@ -149,11 +153,12 @@ class BladeOverlap:
         self.inward = np.array([1.0, -1.0])[:, None]  # inner face at local +y (left), -y
 
     def of(self, xpos: np.ndarray, blade_pos: np.ndarray, blade_mat: np.ndarray) -> np.ndarray:
-        """Per sample, shape (S,): vertex positions (S, V, 3) and the blades' ``geom_xpos``
-        (S, 2, 3) and ``geom_xmat`` (S, 2, 9) rows at each sample."""
+        """Each vertex's reach into either blade (0 outside both), shape (S, V): from vertex
+        positions (S, V, 3) and the blades' ``geom_xpos`` (S, 2, 3) and ``geom_xmat``
+        (S, 2, 9) rows at each sample."""
         # vertices in each blade's frame, (S, 2, V, 3)
         local = (xpos[:, None] - blade_pos[:, :, None]) @ blade_mat.reshape(-1, 2, 3, 3)
         half = self.half
         inside = (np.abs(local[..., 0]) <= half[..., 0]) & (np.abs(local[..., 2]) <= half[..., 2])
         depth = half[..., 1] - self.inward * local[..., 1]
-        return np.max(depth, axis=(1, 2), where=inside, initial=0.0)
+        return np.max(depth, axis=1, where=inside, initial=0.0)

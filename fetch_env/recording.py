@@ -49,11 +49,14 @@ class TraceRecorder:
         self._blade_mat = np.empty((CHUNK, 2, 9))
         self._fresh = np.zeros(CHUNK, dtype=bool)
         self._raw = np.empty((n_samples, ContactSensors.RAW_SIZE))
-        self._overlap = np.empty(n_samples)  # per metered sample
+        self._overlap = np.empty(n_samples)  # per metered sample: the deepest vertex
         self._strain = np.empty((n_samples, n_pieces))  # per fresh strain sample
         self._metered_of = np.empty(n_samples, dtype=np.intp)  # sample -> its metered sample
         self._fresh_of = np.empty(n_samples, dtype=np.intp)  # sample -> its fresh strain sample
-        self.lowest_z = np.full(n_pieces, np.inf)  # lowest vertex so far: plate pass-through
+        # per piece, over the samples so far: the lowest vertex (plate pass-through) and the
+        # deepest reach into a blade (blade pass-through)
+        self.lowest_z = np.full(n_pieces, np.inf)
+        self.max_overlap = np.zeros(n_pieces)
         self._n = self._n_metered = self._n_fresh = self._chunk = 0
 
     def sample(self, metered: bool, fresh_strain: bool) -> None:
@@ -87,8 +90,10 @@ class TraceRecorder:
         if k == 0:
             return
         verts = self._verts[:k]
-        self._overlap[self._n_metered - k:self._n_metered] = self.overlap.of(
-            verts, self._blade_pos[:k], self._blade_mat[:k])
+        overlap = self.positions.piece_max(self.overlap.of(verts, self._blade_pos[:k],
+                                                           self._blade_mat[:k]))  # (k, P)
+        self._overlap[self._n_metered - k:self._n_metered] = overlap.max(axis=1)
+        np.maximum(self.max_overlap, overlap.max(axis=0), out=self.max_overlap)
         np.minimum(self.lowest_z, self.positions.lowest_of(verts).min(axis=0), out=self.lowest_z)
         fresh = self._fresh[:k]
         n_new = int(np.count_nonzero(fresh))

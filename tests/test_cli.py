@@ -37,7 +37,9 @@ def test_simulate_writes_the_contract(tmp_path) -> None:
     (["--young", "-5"], "young"), (["--poisson", "0.7"], "poisson"), (["--g1", "1.2"], "g1"),
     (["--tau1", "0"], "tau1"), (["--mu", "-1"], "mu"), (["--theta-d", "nan"], "theta-d"),
     (["--shape", "pyramid"], "shape"), (["--json", "/no/such/dir/x.json"], "directory"),
-    (["--size", "0.5"], "size"),
+    (["--size", "0.5"], "size"), (["--seed", "-1"], "seed"), (["--json", ""], "file name"),
+    (["--json", "."], "file name"), (["--json", "/"], "file name"),
+    (["--density", "1e-6"], "density"),
 ])
 def test_user_mistakes_are_one_line_and_exit_2(args: list[str], needle: str) -> None:
     p = subprocess.run([*CMD, "simulate", *args], capture_output=True, text=True)
@@ -46,6 +48,25 @@ def test_user_mistakes_are_one_line_and_exit_2(args: list[str], needle: str) -> 
     assert len(lines) == 1, p.stderr
     assert needle in lines[0]
     assert "Traceback" not in p.stderr
+
+
+def test_simulate_says_when_theta_d_was_capped_and_when_a_piece_passed_through(
+        tmp_path) -> None:
+    """The printout and the JSON say what was actually run: theta_d past the end stop is
+    capped there, and a very soft piece squeezed through a blade is flagged, not fetched."""
+    p = subprocess.run([*CMD, "simulate", "--theta-d", "0.25", "--hold", "0.2"],
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    assert "theta_d capped at 0.1767 rad" in p.stdout
+    out = tmp_path / "r.json"
+    p = subprocess.run([*CMD, "simulate", "--young", "12300", "--theta-d", "0.12", "--omega",
+                        "0.4", "--json", str(out)], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    assert "PASSED THROUGH" in p.stdout
+    r = json.loads(out.read_text())
+    assert r["pieces"][0]["passed_through"] is True and r["pieces"][0]["fetched"] is False
+    assert r["extra"]["passed_through"] == [0]
+    assert r["extra"]["theta_d_applied"] == 0.12 and r["extra"]["stalled_at"] is None
 
 
 def test_the_core_needs_only_gymnasium_mujoco_numpy_scipy() -> None:

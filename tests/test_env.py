@@ -45,6 +45,8 @@ from fetch_env.env_scenes import (
     sample_scene,
 )
 from fetch_env.errors import InvalidParameterError, SimulationDivergedError
+from fetch_env.layouts import single_block
+from fetch_env.materials import Material
 from fetch_env.probes import true_parameters
 from fetch_env.spaces import Traces, encode_observation
 
@@ -257,8 +259,23 @@ def test_step_is_the_simulator_s_fetch_and_reward_is_the_sum_of_its_terms() -> N
         assert key in info
 
 
+def test_a_piece_squeezed_through_a_blade_takes_the_whole_deformation_penalty() -> None:
+    """The env's largest squeeze on the study's very soft level passes the piece through a
+    blade (tests/test_every_food.py): not fetched, and the whole deformation penalty whatever
+    its (meaningless) LE; a clean fetch is not flagged."""
+    env = make(deformation_weight=3.0)
+    env.reset(options={"preset": "block"})
+    _, info = env.unwrapped.simulate_action(GENTLE)
+    assert info["passed_through"] is False
+    env.unwrapped.pieces = single_block(material=Material(young=12300.0))
+    _, info = env.unwrapped.simulate_action(physical_to_action(0.12, 0.4, 0.005))
+    assert info["passed_through"] is True and info["pieces"][0]["passed_through"]
+    assert info["fetch_rate"] == 0.0 and info["reward_fetch"] == 0.0
+    assert info["reward_deformation"] == -3.0
+    assert info["is_success"] is False
+
+
 def test_fetch_timestep_defaults_to_the_base_scene_step_and_sets_the_fetch_s_step() -> None:
-    from fetch_env.layouts import single_block
     from fetch_env.scene import build_scene
 
     # The kwarg's default repeats the base MJCF's step: they must not drift apart.

@@ -35,6 +35,7 @@ def test_batched_meters_equal_each_sample_metered_alone(monkeypatch: pytest.Monk
     want: dict[str, list] = {k: [] for k in ("moment", "normal", "tangential", "force",
                                              "overlap", "strain")}
     lowest = np.full(len(scene.pieces), np.inf)
+    deepest = np.zeros(len(scene.pieces))
     for metered, fresh in zip(METERED, FRESH, strict=True):
         # A new state at every sample: nodes jiggled by ~0.1 mm, and the blades closed past
         # the food's sides by a varying angle, so that they press on it and every meter moves.
@@ -47,8 +48,10 @@ def test_batched_meters_equal_each_sample_metered_alone(monkeypatch: pytest.Monk
             want[k].append(reading[k])
         if metered:
             xpos = np.array(d.flexvert_xpos)[None]
-            overlap = recorder.overlap.of(xpos, d.geom_xpos[blades][None],
-                                          d.geom_xmat[blades][None])[0]
+            reach = recorder.positions.piece_max(recorder.overlap.of(
+                xpos, d.geom_xpos[blades][None], d.geom_xmat[blades][None]))[0]
+            overlap = reach.max()
+            deepest = np.maximum(deepest, reach)
             lowest = np.minimum(lowest, recorder.positions.lowest_of(xpos)[0])
         want["overlap"].append(overlap)
         if fresh:
@@ -60,6 +63,7 @@ def test_batched_meters_equal_each_sample_metered_alone(monkeypatch: pytest.Monk
     np.testing.assert_allclose(overlap_trace, want["overlap"], rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(strain_trace, want["strain"], rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(recorder.lowest_z, lowest, rtol=1e-12)
+    np.testing.assert_allclose(recorder.max_overlap, deepest, rtol=1e-12)
     # the states differ enough that a wrong sample's value would show
     assert np.abs(np.asarray(want["moment"])).max() > 1e-3  # the blades press on the food
     assert len({round(float(s), 9) for s in np.asarray(want["strain"])[:, 0]}) == sum(FRESH)
