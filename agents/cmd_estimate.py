@@ -245,6 +245,12 @@ def run_slip_probe(
 
 
 def _check(args: argparse.Namespace) -> None:
+    if getattr(args, "lift_speed", None) is not None:
+        # Neither probe lifts: accepting it silently would suggest it changed something.
+        raise UsageError(
+            f"food-fetch estimate: --lift-speed {args.lift_speed:g} has no effect here "
+            "(neither probe lifts; it is a simulate --experiment fetch option)"
+        )
     if not 0.0 <= args.noise <= 0.5:
         raise UsageError(f"food-fetch estimate: --noise must be in [0, 0.5], got {args.noise:g}")
     if not 0.0 < args.slide_time <= 120.0:
@@ -258,20 +264,42 @@ def _check(args: argparse.Namespace) -> None:
         )
 
 
+def probe_actions(args: argparse.Namespace) -> dict[str, Any]:
+    """The ``FetchAction`` of every probe ``--probe`` runs, built (hence validated, with
+    simulate's messages) before any simulation.
+
+    An explicit ``--theta-d/--omega/--hold`` sets the probe of ``--probe relaxation|slip``,
+    and only the relaxation probe under ``--probe both``: the probes want very different
+    settings (a 6 s relaxation hold before the slide left the slip probe with no steady slip,
+    measured), so one value for both would be a trap.  An omitted one takes that probe's
+    default."""
+    from fetch_env.controller import FetchAction
+
+    out = {}
+    for probe, defaults in (("relaxation", RELAXATION_DEFAULTS), ("slip", SLIP_DEFAULTS)):
+        if args.probe not in ("both", probe):
+            continue
+        given = probe == "relaxation" or args.probe == "slip"
+        kw = {k: getattr(args, k) if given and getattr(args, k) is not None else defaults[k]
+              for k in ("theta_d", "omega", "hold")}
+        if probe == "slip":
+            kw["slide_time"] = args.slide_time
+        out[probe] = FetchAction(**kw)
+    return out
+
+
 def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
     from fetch_env.layouts import Piece
 
     _check(args)
     material = make_material(args)
     pieces = (Piece(args.shape, args.size, material),)
+    actions = probe_actions(args)  # every input is valid past here
     true = {k: math.nan for k in NAMES}
     true.update(g1=material.g1, tau1=material.tau1, mu=material.mu)
     estimate = {k: math.nan for k in NAMES}
     interval: dict[str, tuple[float, float]] = {}
     out = ProbeEstimate(true=true, estimate=estimate, interval=interval)
-    theta_d = args.theta_d if args.theta_d is not None else RELAXATION_DEFAULTS["theta_d"]
-    omega = args.omega if args.omega is not None else RELAXATION_DEFAULTS["omega"]
-    hold = args.hold if args.hold is not None else RELAXATION_DEFAULTS["hold"]
     out.details["settings"] = {
         "method": args.method,
         "noise": args.noise,
@@ -279,17 +307,17 @@ def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
         "clamp_weight": args.clamp_weight,
         "probe": args.probe,
     }
-    if args.probe in ("both", "relaxation"):
+    if "relaxation" in actions:
+        a = actions["relaxation"]
         r = run_relaxation_probe(
             pieces,
-            theta_d,
-            omega,
-            hold,
+            a.theta_d,
+            a.omega,
+            a.hold,
             args.method,
             args.noise,
             args.seed,
             args.clamp_weight,
-            args.lift_speed,
         )
         out.details["relaxation"] = {
             "action": r["action"].to_dict(),
@@ -323,8 +351,11 @@ def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
                 **info,
                 "definition": "K1+K2 = eq. 7 stiffness of a g1=0 run",
             }
-    if args.probe in ("both", "slip"):
-        s = run_slip_probe(pieces, slide_time=args.slide_time, noise=args.noise, seed=args.seed)
+    if "slip" in actions:
+        a = actions["slip"]
+        s = run_slip_probe(
+            pieces, a.theta_d, a.omega, a.hold, a.slide_time, noise=args.noise, seed=args.seed
+        )
         out.details["slip"] = {
             "action": s["action"].to_dict(),
             "wall_sim": s["wall_sim"],
@@ -390,6 +421,24 @@ def register(sub: Any) -> None:
         "sensors, and print them against the truth with errors and 95 % intervals.",
     )
     add_food_options(p)
+    # add_food_options documents simulate's defaults; estimate's probes have their own (from
+    # the dicts above, so the help cannot disagree with the code).
+    r, s = RELAXATION_DEFAULTS, SLIP_DEFAULTS
+    clamp_help = {
+        "--theta-d": "preset angular displacement from the open pose [rad] "
+        f"(default: {r['theta_d']:g} for the relaxation probe, {s['theta_d']:g} for slip)",
+        "--omega": "clamping angular velocity [rad/s] "
+        f"(default: {r['omega']:g} for the relaxation probe, {s['omega']:g} for slip)",
+        "--hold": "hold at theta_d [s] "
+        f"(default: {r['hold']:g} for the relaxation probe, {s['hold']:g} for slip)",
+    }
+    for option, text in clamp_help.items():
+        p._option_string_actions[option].help = (
+            text + "; a value given applies to --probe relaxation or slip, and to the "
+            "relaxation probe only under --probe both")
+    # Neither probe lifts: hide --lift-speed and reject it when given (see _check).
+    p._option_string_actions["--lift-speed"].help = argparse.SUPPRESS
+    p.set_defaults(lift_speed=None)
     p.add_argument(
         "--method",
         choices=("full", "three-step"),

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from agents.cli_common import UsageError, finite, require_extra, writable, write_json
+from agents.cli_common import UsageError, finite, require_extra, seed, writable, write_json
 
 
 def _positive_int(text: str) -> int:
@@ -19,13 +19,6 @@ def _positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
     return int(value)
-
-
-def _out_file(text: str) -> Path:
-    p = writable(text)
-    if p.is_dir():
-        raise argparse.ArgumentTypeError(f"is a directory, not a file: {text!r}")
-    return p
 
 
 def _out_dir(text: str) -> Path:
@@ -105,6 +98,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     tasks = [Task(a, args.env, i, args.seed + i)
              for i in range(args.episodes) for a in agents
              if not (a == REFERENCE and i >= n_search)]
+    # A worker beyond one per task only costs a process start (MuJoCo, numpy imports).
+    args.workers = min(args.workers, len(tasks))
 
     from tqdm import tqdm
 
@@ -145,9 +140,12 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         if path is not None:
             print(f"wrote             {path}")
     if args.video is not None:
+        existed = args.video.exists()
         try:
             videos = record_videos(args.video, agents, args.env, args.seed, {})
         except Exception as exc:  # no OpenGL context (headless without MUJOCO_GL=egl)
+            if not existed and args.video.is_dir() and not any(args.video.iterdir()):
+                args.video.rmdir()  # leave no empty folder behind a failed call
             msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise UsageError(f"food-fetch evaluate: --video: cannot render ({msg}); on a "
                              "headless machine set MUJOCO_GL=egl (or osmesa)") from None
@@ -163,7 +161,7 @@ def register(sub: Any) -> None:
         description="Run each agent on the same seeded scenes (episode i uses "
         "reset(seed=SEED+i)) and print, per agent, the mean reward, fetch rate, success "
         "rate, mean and max logarithmic strain LE, time per fetch and regret against "
-        "'search' (the per-scene optimum found with the simulator), each with its 95 %% "
+        "'search' (the per-scene optimum found with the simulator), each with its 95 % "
         "interval. Agents: random, study, model-based, search, or the path of a model "
         "saved by 'food-fetch train'. Ctrl-C stops and still writes what finished.",
     )
@@ -175,18 +173,19 @@ def register(sub: Any) -> None:
                    "-Diced-v0 (default: FoodFetch-Block-v0)")
     p.add_argument("--episodes", type=_positive_int, default=20, metavar="N",
                    help="episodes (scenes) per agent (default: 20)")
-    p.add_argument("--seed", type=finite(int), default=0, metavar="S",
-                   help="seed of the first scene (default: 0)")
+    p.add_argument("--seed", type=seed, default=0, metavar="S",
+                   help="seed of the first scene, 0 to 2**32-1 (default: 0)")
     p.add_argument("--workers", type=_positive_int, default=1, metavar="K",
-                   help="worker processes; any K gives the same numbers (default: 1)")
+                   help="worker processes, at most one per (agent, episode) task (more are "
+                   "not started); any K gives the same numbers (default: 1)")
     p.add_argument("--search-episodes", type=_positive_int, default=None, metavar="N",
                    help="run 'search' (~20 simulations per scene) on the first N scenes "
                    "only; regret is then paired on those (default: all)")
-    p.add_argument("--json", type=_out_file, default=None, metavar="FILE",
+    p.add_argument("--json", type=writable, default=None, metavar="FILE",
                    help="write the summary (and settings, machine) as JSON")
     p.add_argument("--json-episodes", action="store_true",
                    help="also put every episode's record in the JSON")
-    p.add_argument("--csv", type=_out_file, default=None, metavar="FILE",
+    p.add_argument("--csv", type=writable, default=None, metavar="FILE",
                    help="write one row per (agent, episode)")
     p.add_argument("--plots", type=_out_dir, default=None, metavar="DIR",
                    help="write reward.png, fetch_rate.png, theta_vs_stiffness.png")

@@ -8,6 +8,8 @@ becomes ``_``) with this small interface:
 * ``HELP: str`` -- one line for ``--help`` (optional);
 * ``add_arguments(parser)`` -- adds the experiment's own options (optional); ``--out DIR`` and
   ``--seed N`` are added here for every experiment;
+* ``check(args)`` -- validates the experiment's options, raising ``UsageError`` (optional;
+  called before ``--out`` is created, so a rejected call leaves nothing behind);
 * ``run(args) -> int`` -- does the work (required); ``args.out`` is an existing, writable
   :class:`pathlib.Path`.
 
@@ -20,10 +22,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import shutil
 from pathlib import Path
 from typing import Any
 
-from agents.cli_common import UsageError, finite, require_extra
+from agents.cli_common import UsageError, require_extra, seed
 
 EXPERIMENTS: tuple[str, ...] = ("friction", "viscoelastic", "fetch-rate")
 _HELP = {
@@ -49,15 +52,36 @@ def load(experiment: str) -> Any | None:
 
 
 def out_dir(path: str) -> Path:
-    """``--out``: created if missing (parents too); must end up a writable directory."""
+    """``--out``: a directory that exists or can be created (its nearest existing ancestor is
+    a writable directory).  Only checked here: :func:`cmd_reproduce` creates it once every
+    input is known good, so a rejected call leaves no empty directory behind."""
     p = Path(path)
-    try:
-        p.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise argparse.ArgumentTypeError(f"cannot create {path!r}: {exc.strerror}") from None
-    if not os.access(p, os.W_OK):
+    if p.exists() and not p.is_dir():
+        raise argparse.ArgumentTypeError(f"not a directory: {path!r}")
+    probe = p.absolute()
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir():
+        raise argparse.ArgumentTypeError(f"cannot create {path!r}: {str(probe)!r} is not a "
+                                         "directory")
+    if not os.access(probe, os.W_OK | os.X_OK):
         raise argparse.ArgumentTypeError(f"cannot write to {path!r}")
     return p
+
+
+def make_out_dir(path: Path) -> Path | None:
+    """Create ``path`` (parents too); the topmost directory this created, None if it existed."""
+    top = None
+    for q in (path.absolute(), *path.absolute().parents):
+        if q.exists():
+            break
+        top = q
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"food-fetch reproduce: --out: cannot create {str(path)!r}: "
+                         f"{exc.strerror}") from None
+    return top
 
 
 # --------------------------------------------------------------------------------------------
@@ -129,7 +153,17 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
             f"food-fetch reproduce: {args.experiment!r} is not available in this checkout "
             f"({module_name(args.experiment)} with run(args) is missing)"
         )
-    return int(module.run(args))
+    if hasattr(module, "check"):
+        module.check(args)  # every option, before --out is created or any run starts
+    created = make_out_dir(args.out)
+    try:
+        return int(module.run(args))
+    except BaseException:
+        # A failed run (diverged, interrupted) must not leave behind a directory it made and
+        # never wrote a file into.
+        if created is not None and not any(q.is_file() for q in created.rglob("*")):
+            shutil.rmtree(created, ignore_errors=True)
+        raise
 
 
 def register(sub: Any) -> None:
@@ -156,11 +190,12 @@ def register(sub: Any) -> None:
             type=out_dir,
             required=True,
             metavar="DIR",
-            help="folder for the tables and figures (created if missing)",
+            help="folder for the tables and figures (created if missing, once the "
+            "other options are checked)",
         )
         ep.add_argument(
             "--seed",
-            type=finite(int),
+            type=seed,
             default=0,
             metavar="N",
             help="seed for every random choice (default: 0)",

@@ -168,6 +168,7 @@ def run_tasks(tasks: Sequence[Task], workers: int = 1,
                 on_result(rec)
 
     interrupted: BaseException | None = None
+    workers = min(workers, len(tasks))  # an idle worker would only cost its start-up
     if workers <= 1:
         try:
             collect((i, run_episode(t)) for i, t in enumerate(tasks))

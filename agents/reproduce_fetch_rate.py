@@ -291,8 +291,18 @@ def run(args: argparse.Namespace) -> int:
 
 
 if __name__ == "__main__":
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    import sys
+
+    from agents.cli_common import EXIT_USAGE, Parser, UsageError, seed
+
+    # The CLI's Parser and seed type: a bad --seed (e.g. -1, which used to crash after 11 of
+    # the 12 fetches) is one line and exit 2 before any fetch.
+    ap = Parser(prog="reproduce_fetch_rate", description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="docs")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=seed, default=0)
     add_arguments(ap)
-    raise SystemExit(run(ap.parse_args()))
+    try:
+        raise SystemExit(run(ap.parse_args()))
+    except UsageError as exc:
+        print(exc, file=sys.stderr)
+        raise SystemExit(EXIT_USAGE) from None

@@ -87,6 +87,20 @@ def parse_mus(text: str) -> list[float]:
     return out
 
 
+def check(args: argparse.Namespace) -> tuple[list[str], list[float]]:
+    """Every option validated (one-line ``UsageError``) before ``--out`` is created or the
+    progress bar starts; returns the parsed shapes and mus."""
+    shapes = parse_list(args.shapes, SHAPES, "shapes")
+    mus = parse_mus(args.mus)
+    if not 0.0 <= args.noise <= 0.5:
+        raise UsageError(f"food-fetch reproduce: --noise must be in [0, 0.5], got {args.noise:g}")
+    if not 0.0 < args.slide_time <= 120.0:  # FetchAction's range for slide_time
+        raise UsageError(
+            f"food-fetch reproduce: --slide-time must be in (0, 120] s, got {args.slide_time:g}"
+        )
+    return shapes, mus
+
+
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -95,10 +109,7 @@ def run(args: argparse.Namespace) -> int:
     from fetch_env.layouts import single_block
     from fetch_env.materials import PRESETS
 
-    shapes = parse_list(args.shapes, SHAPES, "shapes")
-    mus = parse_mus(args.mus)
-    if not 0.0 <= args.noise <= 0.5:
-        raise UsageError(f"food-fetch reproduce: --noise must be in [0, 0.5], got {args.noise:g}")
+    shapes, mus = check(args)
     results: list[dict[str, Any]] = []
     jobs = [(s, m) for s in shapes for m in mus]
     for shape, mu in tqdm(jobs, desc="friction runs", unit="run"):

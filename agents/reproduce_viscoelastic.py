@@ -85,6 +85,21 @@ def parse_omegas(text: str) -> list[float]:
     return out
 
 
+def check(args: argparse.Namespace) -> list[float]:
+    """Every option validated (one-line ``UsageError``) before ``--out`` is created or the
+    progress bar starts; returns the parsed omegas."""
+    omegas = parse_omegas(args.omegas)
+    if not 0.0 <= args.noise <= 0.5:
+        raise UsageError(f"food-fetch reproduce: --noise must be in [0, 0.5], got {args.noise:g}")
+    if not 0.5 <= args.hold <= 600:
+        raise UsageError(f"food-fetch reproduce: --hold must be in [0.5, 600] s, got {args.hold:g}")
+    if not 0.0 < args.clamp_weight <= 1e6:  # as food-fetch estimate
+        raise UsageError(
+            f"food-fetch reproduce: --clamp-weight must be in (0, 1e6], got {args.clamp_weight:g}"
+        )
+    return omegas
+
+
 def _pct(x: float) -> str:
     return f"{100 * x:+.3f}" if np.isfinite(x) else "-"
 
@@ -98,13 +113,7 @@ def run(args: argparse.Namespace) -> int:
     from fetch_env.layouts import single_block
     from fetch_env.materials import PRESETS
 
-    omegas = parse_omegas(args.omegas)
-    if not 0.0 <= args.noise <= 0.5:
-        raise UsageError(f"food-fetch reproduce: --noise must be in [0, 0.5], got {args.noise:g}")
-    if not 0.5 <= args.hold <= 600:
-        raise UsageError(f"food-fetch reproduce: --hold must be in [0.5, 600] s, got {args.hold:g}")
-    if not args.clamp_weight > 0:
-        raise UsageError("food-fetch reproduce: --clamp-weight must be > 0")
+    omegas = check(args)
     material = PRESETS["soft-0.2MPa"]
     pieces = single_block("cube", 0.015, material)
     g1_true, tau1_true = material.g1, material.tau1

@@ -1,13 +1,17 @@
-"""``food-fetch estimate`` and ``food-fetch reproduce`` as a user meets them, in a subprocess,
-with tiny budgets (short holds and slides): the contract, not the accuracy."""
+"""``food-fetch estimate`` and ``food-fetch reproduce`` as a user meets them, in a subprocess
+or in-process, with tiny budgets (short holds and slides): the contract, not the accuracy."""
 
 from __future__ import annotations
 
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
+
+from agents.cli import main
+from tests.cli_helpers import assert_one_line_error, run_cli
 
 CMD = [sys.executable, "-m", "agents.cli"]
 
@@ -46,6 +50,11 @@ def test_estimate_json_contract(tmp_path) -> None:
     assert 0.9 < r["r2_hold"] <= 1.0
     assert "estimate" in p.stdout and "g1" in p.stdout and "mu" in p.stdout
     assert not list(tmp_path.glob("*.part"))
+    # under --probe both the clamp options set the relaxation probe; slip keeps its defaults
+    relax, slip = (r["details"][k]["action"] for k in ("relaxation", "slip"))
+    assert (relax["theta_d"], relax["omega"], relax["hold"]) == (0.0244, 0.04, 6.0)
+    assert (slip["theta_d"], slip["omega"], slip["hold"], slip["slide_time"]) == (
+        0.06, 0.1, 0.5, 2.0)
 
 
 def test_estimate_three_step_slip_only(tmp_path) -> None:
@@ -160,3 +169,70 @@ def test_reproduce_viscoelastic_tiny(tmp_path) -> None:
     ):
         assert (tmp_path / name).stat().st_size > 0, name
     assert not list(tmp_path.glob("*.part*"))
+
+
+# ------------------------------------------------------------------ in-process, no simulation
+@pytest.fixture
+def no_simulation(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Any simulation fails the test: a rejected call must do no work."""
+    from fetch_env.controller import FetchSimulator
+
+    def refuse(*_a: object, **_k: object) -> None:
+        raise AssertionError("simulated before the inputs were validated")
+
+    monkeypatch.setattr(FetchSimulator, "run", refuse)
+
+
+@pytest.mark.parametrize(("args", "fragment"), [
+    # the slip probe used to ignore these (always theta_d 0.06, omega 0.1, hold 0.5): now they
+    # apply to it and are validated as simulate validates them
+    (["--probe", "slip", "--theta-d", "0"], "theta_d must be in (0.0, 0.3] rad, got 0.0"),
+    (["--probe", "slip", "--hold", "-3"], "hold must be in [0, 600] s, got -3.0"),
+    (["--probe", "slip", "--omega", "99"], "omega must be in [0.001, 2.0] rad/s, got 99.0"),
+    (["--probe", "both", "--hold", "601"], "hold must be in [0, 600] s, got 601.0"),
+    (["--lift-speed", "0.01"], "--lift-speed 0.01 has no effect here (neither probe lifts"),
+    (["--seed", "-1", "--probe", "relaxation", "--hold", "0.5"],
+     "--seed: -1 is not in [0, 4294967295]"),
+    (["--json", "."], "--json: not a file name: '.'"),
+    (["--json", ""], "--json: not a file name: ''"),
+], ids=lambda v: v if isinstance(v, str) else " ".join(v))
+def test_estimate_mistake_is_one_line_before_any_simulation(
+        args: list[str], fragment: str, no_simulation: None,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run_cli(["estimate", *args], capsys)
+    assert_one_line_error(code, err)
+    assert fragment in err and out == "", err
+
+
+def test_estimate_json_to_a_directory_writes_nothing(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, no_simulation: None,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    code, _out, err = run_cli(["estimate", "--probe", "slip", "--json", "."], capsys)
+    assert_one_line_error(code, err)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_estimate_slip_probe_uses_the_clamp_options(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    js = tmp_path / "s.json"
+    code, _out, err = run_cli(["estimate", "--probe", "slip", "--theta-d", "0.05", "--omega",
+                               "0.2", "--hold", "0.2", "--slide-time", "0.5", "--json",
+                               str(js)], capsys)
+    assert code == 0, err
+    action = json.loads(js.read_text())["details"]["slip"]["action"]
+    assert (action["theta_d"], action["omega"], action["hold"], action["slide_time"]) == (
+        0.05, 0.2, 0.2, 0.5)
+
+
+def test_estimate_help_states_its_own_defaults(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["estimate", "--help"])
+    assert exc.value.code == 0
+    out = " ".join(capsys.readouterr().out.split())  # undo argparse's line wrapping
+    assert "(default: 0.0244 for the relaxation probe, 0.06 for slip)" in out
+    assert "(default: 0.02 for the relaxation probe, 0.1 for slip)" in out
+    assert "(default: 25 for the relaxation probe, 0.5 for slip)" in out
+    assert "to the relaxation probe only under --probe both" in out
+    # simulate's defaults (relaxation hold 15 s, slip theta_d 0.045) and the unused option
+    assert "15 for relaxation" not in out and "0.045" not in out and "--lift-speed" not in out

@@ -9,7 +9,9 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
+from typing import Any, ClassVar
 
 import pytest
 
@@ -37,16 +39,85 @@ def test_help_is_clear(capsys: pytest.CaptureFixture[str]) -> None:
     (["--episodes", "ten"], "--episodes: not a number: 'ten'"),
     (["--episodes", "0"], "--episodes: must be >= 1"),
     (["--workers", "nan"], "--workers"),
-    (["--seed", "1.5"], "--seed: not a number"),
+    (["--seed", "1.5"], "--seed: not an integer: '1.5'"),
+    (["--seed", "-1"], "--seed: -1 is not in [0, 4294967295]"),
+    (["--seed", str(2**32)], f"--seed: {2**32} is not in [0, 4294967295]"),
     (["--json", "/nonexistent-dir/out.json"], "--json: directory does not exist"),
-    (["--csv", "/"], "--csv: is a directory, not a file: '/'"),
+    (["--json", "."], "--json: not a file name: '.'"),
+    (["--json", ""], "--json: not a file name: ''"),
+    (["--csv", "."], "--csv: not a file name: '.'"),
+    (["--csv", "/"], "--csv: not a file name: '/'"),
     (["--plots", "/proc/version"], "--plots: not a directory"),
 ])
 def test_mistakes_are_one_line_and_exit_2(argv: list[str], fragment: str,
+                                         monkeypatch: pytest.MonkeyPatch,
                                          capsys: pytest.CaptureFixture[str]) -> None:
-    code, _out, err = run_cli(["evaluate", *argv], capsys)
+    def refuse(_task: ev.Task) -> dict:
+        raise AssertionError("an episode ran before the inputs were validated")
+
+    monkeypatch.setattr(ev, "run_episode", refuse)
+    code, _out, err = run_cli(["evaluate", "--agent", "study", "--episodes", "1", *argv],
+                              capsys)
     assert_one_line_error(code, err)
     assert fragment in err
+
+
+def test_help_has_no_printf_escapes(capsys: pytest.CaptureFixture[str]) -> None:
+    """The description is printed as written (argparse does not %-format it)."""
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "%%" not in out and "each with its 95 % interval" in out
+    assert "at most one per (agent, episode) task" in out  # --workers is capped
+
+
+class _FakePool:
+    """A process pool that runs in this process and remembers its size."""
+
+    sizes: ClassVar[list[int]] = []
+
+    def __init__(self, n: int, initializer: object = None) -> None:
+        self.sizes.append(n)
+
+    def imap_unordered(self, fn: Callable[[Any], Any], items: Iterable[Any],
+                       chunksize: int = 1) -> Iterator[Any]:
+        return map(fn, items)
+
+    def close(self) -> None: ...
+    def terminate(self) -> None: ...
+    def join(self) -> None: ...
+
+
+class _FakeContext:
+    Pool = _FakePool
+
+
+def test_workers_are_capped_at_the_number_of_tasks(monkeypatch: pytest.MonkeyPatch) -> None:
+    import multiprocessing
+
+    _FakePool.sizes = []
+    monkeypatch.setattr(multiprocessing, "get_context", lambda _method: _FakeContext())
+    monkeypatch.setattr(ev, "run_episode", lambda t: {"episode": t.episode})
+    tasks = [ev.Task("random", "FoodFetch-Block-v0", i, i) for i in range(3)]
+    assert ev.run_tasks(tasks, workers=64) == [{"episode": i} for i in range(3)]
+    assert _FakePool.sizes == [3]  # not 64 processes for 3 tasks
+
+
+def test_one_task_starts_no_pool(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """``--workers 64 --episodes 1`` used to start 64 processes for one episode (~3 min)."""
+    import multiprocessing
+
+    def no_pool(_method: str) -> None:
+        raise AssertionError("a process pool for a single task")
+
+    monkeypatch.setattr(multiprocessing, "get_context", no_pool)
+    js = tmp_path / "w.json"
+    code, out, err = run_cli(["evaluate", "--agent", "study", "--episodes", "1", "--workers",
+                              "64", "--json", str(js), "--quiet"], capsys)
+    assert code == 0, err
+    assert json.loads(js.read_text())["workers"] == 1
+    assert "1 worker(s)" in out
 
 
 def test_json_contract_and_table(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
