@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from agents.cli_common import UsageError, finite, require_extra
+from agents.cli_common import UsageError, finite, require_extra, seed
 
 ENV_HELP = "FoodFetch-Block-v0, -Row-v0, -TwoRows-v0 or -Diced-v0"
 
@@ -34,18 +34,14 @@ def _positive_int(text: str) -> int:
 
 def cmd_train(args: argparse.Namespace) -> int:
     require_extra("train", "train")
-    from agents.train import TrainError, env_ids, load_hyperparams, parse_override, train
+    import sys
+
+    from agents.train import TrainError, parse_override, train
 
     try:
-        if args.env not in env_ids():
-            raise TrainError(f"unknown environment id {args.env!r}; "
-                             f"choose from {', '.join(env_ids())}")
         overrides = dict(parse_override(t) for t in args.hyperparams)
-        load_hyperparams(args.algo, args.env, args.hyperparams_file, overrides)  # fail early
-        if args.resume is not None and not Path(args.resume).is_file():
-            raise TrainError(f"checkpoint not found: {args.resume!r}")
-        import sys
-
+        # train() checks the whole request and builds the env and model before it creates
+        # or opens anything under --log-dir: a mistake leaves an earlier run's files intact.
         out = train(args.algo, args.env, args.timesteps, args.seed, args.log_dir,
                     resume=args.resume, hyperparams_file=args.hyperparams_file,
                     overrides=overrides, progress=not args.no_progress, threads=args.threads,
@@ -69,25 +65,35 @@ def register(sub: Any) -> None:
         "best model) and checkpoints/ under --log-dir. Needs the train extra "
         "(stable-baselines3, torch).",
     )
-    p.add_argument("--algo", choices=("ppo", "sac"), default="ppo",
-                   help="algorithm (default: ppo)")
+    p.add_argument("--algo", choices=("ppo", "sac"), default=None,
+                   help="algorithm (default: ppo; with --resume, the checkpoint's)")
     p.add_argument("--env", default="FoodFetch-Block-v0", metavar="ID",
                    help=f"environment id: {ENV_HELP} (default: FoodFetch-Block-v0)")
     p.add_argument("--timesteps", type=_positive_int, default=None, metavar="N",
                    help="total environment steps (= fetches); default: n_timesteps of the "
-                   "YAML; with --resume, the total including the checkpoint's steps")
-    p.add_argument("--seed", type=finite(int), default=0, metavar="S",
-                   help="seed of the policy and the training scenes (default: 0)")
+                   "YAML. With --resume, N counts the checkpoint's steps too: it trains N "
+                   "minus those, and N must exceed them. PPO collects whole rollouts of "
+                   "n_steps x n_envs, so it may stop up to one rollout past N")
+    p.add_argument("--seed", type=seed, default=0, metavar="S",
+                   help="seed of the policy and the training scenes, in [0, 2**32-1] "
+                   "(default: 0)")
     p.add_argument("--log-dir", type=_log_dir, default=Path("out/train"), metavar="DIR",
                    help="output directory, created if missing (default: out/train)")
     p.add_argument("--resume", default=None, metavar="CHECKPOINT",
                    help="continue from a saved model or checkpoint .zip (SAC also reloads the "
-                   "replay buffer saved next to it)")
+                   "replay buffer saved next to it). The algorithm's hyperparameters are the "
+                   "checkpoint's; --hyperparams may change only those SB3 re-applies on "
+                   "loading (e.g. learning_rate, n_steps, batch_size, n_epochs for PPO), "
+                   "others are refused; n_envs, eval_freq, ... apply as for a new run. "
+                   "Resuming into the --log-dir of the same run appends to its monitor, "
+                   "progress and evaluation logs")
     p.add_argument("--hyperparams-file", default=None, metavar="YAML",
                    help="use this YAML instead of the shipped one (same layout)")
     p.add_argument("--hyperparams", nargs="*", default=[], metavar="KEY=VALUE",
                    help="override hyperparameters, values read as YAML "
-                   "(e.g. learning_rate=1e-3 n_envs=2)")
+                   "(e.g. learning_rate=1e-3 n_envs=2); n_envs: 1 to 64; n_timesteps, "
+                   "n_eval_episodes: integers >= 1; eval_freq, checkpoint_freq: integers "
+                   ">= 0 (0: off)")
     p.add_argument("--threads", type=_positive_int, default=1, metavar="K",
                    help="torch threads (default: 1)")
     p.add_argument("--no-eval", action="store_true", help="skip the periodic evaluation")

@@ -18,26 +18,59 @@ class ModelLoadError(Exception):
     """The file is missing or is not a loadable SB3 model (one line)."""
 
 
+def model_data(path: str | Path) -> dict[str, Any]:
+    """The ``data`` entry of a saved SB3 model (JSON, read without torch): its constructor
+    arguments and ``num_timesteps``.  ModelLoadError when the file is not such a model."""
+    import json
+
+    try:
+        with zipfile.ZipFile(path) as zf:
+            data = json.loads(zf.read("data").decode())
+    except OSError as exc:
+        raise ModelLoadError(f"cannot read {str(path)!r}: {exc.strerror}") from None
+    except zipfile.BadZipFile:
+        raise ModelLoadError(f"{str(path)!r} is not a valid Stable-Baselines3 model "
+                             "(not a zip file)") from None
+    except (KeyError, UnicodeDecodeError, ValueError):
+        raise ModelLoadError(f"{str(path)!r} is not a valid Stable-Baselines3 model "
+                             "(no readable 'data' entry in the zip)") from None
+    if not isinstance(data, dict):
+        raise ModelLoadError(f"{str(path)!r} is not a valid Stable-Baselines3 model "
+                             "(its 'data' entry is not a mapping)")
+    return data
+
+
+def algo_of_data(data: dict[str, Any]) -> str | None:
+    """'ppo' or 'sac' from a model's ``data``: SAC's policy lives in stable_baselines3.sac,
+    PPO's is the shared ActorCriticPolicy, told apart by PPO's own arguments."""
+    policy = data.get("policy_class")
+    module = policy.get("__module__", "") if isinstance(policy, dict) else ""
+    if str(module).startswith("stable_baselines3.sac."):
+        return "sac"
+    if "clip_range" in data and "n_epochs" in data:
+        return "ppo"
+    return None
+
+
 def _algo_of(path: Path) -> str | None:
-    """'ppo' or 'sac' from the model's own metadata or a config.yml next to it."""
+    """'ppo' or 'sac' from the model's own metadata or, failing that, a config.yml next to
+    it (the metadata first: a config.yml can belong to a later run in the same folder)."""
+    try:
+        algo = algo_of_data(model_data(path))
+    except ModelLoadError:
+        algo = None
+    if algo is not None:
+        return algo
     cfg = path.parent / "config.yml"
     if cfg.is_file():
         import yaml
 
         try:
             algo = (yaml.safe_load(cfg.read_text()) or {}).get("algo")
-        except yaml.YAMLError:
+        except (OSError, UnicodeDecodeError, yaml.YAMLError, AttributeError):
             algo = None
         if algo in ("ppo", "sac"):
             return str(algo)
-    try:
-        with zipfile.ZipFile(path) as zf:
-            data = zf.read("data").decode()
-    except (OSError, KeyError, zipfile.BadZipFile):
-        return None
-    for algo in ("sac", "ppo"):
-        if f"stable_baselines3.{algo}." in data:
-            return algo
     return None
 
 

@@ -6,11 +6,22 @@ directory::
 
     model.zip              the final policy (``food-fetch evaluate --agent DIR/model.zip``)
     config.yml             everything needed to repeat the run (algo, env, seed, budget,
-                           hyperparameters, versions, command line)
+                           hyperparameters actually used, versions, command line)
     progress.csv           SB3's logger (plus TensorBoard event files if tensorboard is installed)
     monitor/               per-episode reward, fetch rate, LE, success (SB3 Monitor CSVs)
     eval/                  EvalCallback: evaluations.npz and best_model.zip
     checkpoints/           CheckpointCallback: rl_model_<steps>_steps.zip (+ SAC replay buffer)
+
+A call is checked whole (ids, hyperparameters, checkpoint, log directory) and the env and
+model are built before anything in the log directory is created or opened, so a mistake leaves
+an earlier run's files as they were.
+
+Resuming (``resume=CHECKPOINT``): the budget is the total step count, the checkpoint's steps
+included.  The algorithm's arguments are the checkpoint's; ``overrides`` may change those SB3
+re-applies to a loaded model (:data:`RESUMABLE`), any other is refused.  The run settings
+(``n_envs``, ``eval_freq``, ...) come from the YAML and overrides as for a new run.  Resuming
+into a log directory that holds the same run continues its monitor, progress and evaluation
+logs, and keeps its earlier config under ``previous_runs`` in config.yml.
 
 SB3 and torch are imported only inside the functions (they are the ``train`` extra).
 """
@@ -18,9 +29,17 @@ SB3 and torch are imported only inside the functions (they are the ``train`` ext
 from __future__ import annotations
 
 import copy
+import enum
+import io
+import json
+import math
+import os
 import platform
+import re
 import sys
 import time
+import zipfile
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -32,10 +51,77 @@ ALGOS: tuple[str, ...] = ("ppo", "sac")
 RUN_KEYS: tuple[str, ...] = ("n_envs", "n_timesteps", "policy", "eval_freq", "n_eval_episodes",
                              "checkpoint_freq", "env_kwargs")
 EVAL_SEED_OFFSET = 1_000_003  # eval scenes never coincide with training scenes
+MAX_ENVS = 64  # DummyVecEnv steps the envs one after another: more than this is a typo
+INFO_KEYS: tuple[str, ...] = ("fetch_rate", "max_log_strain", "is_success")  # monitor columns
+# Constructor arguments that food-fetch train sets itself, and the option that sets them.
+RESERVED: dict[str, str] = {"env": "--env", "seed": "--seed", "verbose": "--verbose",
+                            "device": "always cpu", "tensorboard_log": "--log-dir",
+                            "_init_setup_model": "internal to SB3"}
+# Arguments SB3 re-applies when it loads a model (``load(**kwargs)`` then ``_setup_model``)
+# without changing the network or the optimizer state it restores: the only ones an override
+# may change on resume (policy_kwargs, SAC's ent_coef or buffer_size would not load).
+RESUMABLE: dict[str, tuple[str, ...]] = {
+    "ppo": ("learning_rate", "n_steps", "batch_size", "n_epochs", "gamma", "gae_lambda",
+            "clip_range", "clip_range_vf", "normalize_advantage", "ent_coef", "vf_coef",
+            "max_grad_norm", "target_kl"),
+    "sac": ("learning_rate", "batch_size", "learning_starts", "train_freq", "gradient_steps",
+            "gamma", "tau", "target_update_interval"),
+}
+# (integer?, low, high, low excluded?) of the run keys and of the SB3 arguments whose range
+# SB3 checks late or not at all (a loaded model skips the constructor's checks).
+Range = tuple[bool, float | None, float | None, bool]
+RANGES: dict[str, Range] = {
+    "n_envs": (True, 1, MAX_ENVS, False), "n_timesteps": (True, 1, None, False),
+    "eval_freq": (True, 0, None, False), "n_eval_episodes": (True, 1, None, False),
+    "checkpoint_freq": (True, 0, None, False),
+    "learning_rate": (False, 0, None, True), "n_steps": (True, 1, None, False),
+    "n_epochs": (True, 1, None, False), "gamma": (False, 0, 1, False),
+    "gae_lambda": (False, 0, 1, False), "clip_range": (False, 0, None, True),
+    "clip_range_vf": (False, 0, None, True), "vf_coef": (False, 0, None, False),
+    "max_grad_norm": (False, 0, None, True), "target_kl": (False, 0, None, True),
+    "buffer_size": (True, 1, None, False), "learning_starts": (True, 0, None, False),
+    "gradient_steps": (True, -1, None, False), "tau": (False, 0, 1, False),
+    "target_update_interval": (True, 1, None, False), "sde_sample_freq": (True, -1, None, False),
+    "stats_window_size": (True, 1, None, False),
+}
+ALGO_RANGES: dict[str, dict[str, Range]] = {
+    "ppo": {"batch_size": (True, 2, None, False),  # SB3 asserts batch_size > 1
+            "ent_coef": (False, 0, None, False)},
+    "sac": {"batch_size": (True, 1, None, False),
+            "ent_coef": (False, 0, None, False)},  # or "auto", "auto_<start>": SB3 reads those
+}
+NULLABLE: tuple[str, ...] = ("clip_range_vf", "target_kl")  # None switches them off
+FLAGS: tuple[str, ...] = ("normalize_advantage", "use_sde", "optimize_memory_usage",
+                          "use_sde_at_warmup")
+# SB3 wants Python objects (a class, an ActionNoise) here, which a YAML value cannot be.
+OBJECTS: tuple[str, ...] = ("action_noise", "rollout_buffer_class", "replay_buffer_class")
 
 
 class TrainError(Exception):
     """A bad training request (unknown id, missing file, bad hyperparameter): one line."""
+
+
+class _Loader(yaml.SafeLoader):
+    """PyYAML reads ``1e-3`` (no dot) as a string; YAML 1.2 and every user read a float."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float", re.compile(r"^[-+]?(?:\d+\.?\d*|\.\d+)[eE][-+]?\d+$"),
+    list("-+0123456789."))
+
+
+def _yaml(text: str) -> Any:
+    return yaml.load(text, Loader=_Loader)  # _Loader is a SafeLoader
+
+
+def _short(value: Any, width: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= width else text[:width - 3] + "..."
+
+
+def _first_line(exc: BaseException) -> str:
+    lines = str(exc).strip().splitlines()
+    return lines[0] if lines else type(exc).__name__
 
 
 def env_ids() -> tuple[str, ...]:
@@ -57,30 +143,455 @@ def load_hyperparams(algo: str, env_id: str, file: str | Path | None = None,
         raise TrainError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGOS)}")
     path = Path(file) if file is not None else hyperparams_path(algo)
     try:
-        table = yaml.safe_load(path.read_text())
+        table = _yaml(path.read_text())
     except OSError as exc:
         raise TrainError(f"cannot read hyperparameter file {str(path)!r}: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise TrainError(f"hyperparameter file {str(path)!r} is not a text file") from None
     except yaml.YAMLError as exc:
         raise TrainError(f"hyperparameter file {str(path)!r} is not valid YAML: "
                          f"{str(exc).splitlines()[0]}") from None
-    if not isinstance(table, dict) or env_id not in table:
-        known = ", ".join(table) if isinstance(table, dict) else "none"
+    if not isinstance(table, dict):
+        raise TrainError(f"hyperparameter file {str(path)!r} must map environment ids to "
+                         f"hyperparameters (FoodFetch-Block-v0: {{...}}), got {_short(table)}")
+    if env_id not in table:
         raise TrainError(f"no {algo} hyperparameters for {env_id!r} in {str(path)!r} "
-                         f"(ids there: {known})")
-    hp = copy.deepcopy(table[env_id])
+                         f"(ids there: {', '.join(map(str, table)) or 'none'})")
+    block = {} if table[env_id] is None else table[env_id]  # an empty block: all defaults
+    if not isinstance(block, dict):
+        raise TrainError(f"the {env_id} entry of {str(path)!r} must be a mapping of "
+                         f"hyperparameters (key: value), got {_short(block)}")
+    bad = [k for k in block if not isinstance(k, str)]
+    if bad:
+        raise TrainError(f"hyperparameter names in {str(path)!r} must be text, got {bad[0]!r}")
+    hp = copy.deepcopy(block)
     hp.update(copy.deepcopy(overrides or {}))
     return hp
 
 
 def parse_override(text: str) -> tuple[str, Any]:
     """``key=value`` with the value read as YAML (``learning_rate=1e-3``, ``net_arch=[32]``)."""
-    if "=" not in text:
+    key, eq, value = text.partition("=")
+    if not eq or not key.strip():
         raise TrainError(f"hyperparameter override must be key=value, got {text!r}")
-    key, value = text.split("=", 1)
     try:
-        return key.strip(), yaml.safe_load(value)
+        return key.strip(), _yaml(value)
     except yaml.YAMLError:
         raise TrainError(f"cannot read the value of override {text!r}") from None
+
+
+def _check_range(algo: str, key: str, value: Any) -> None:
+    if key in FLAGS and not isinstance(value, bool):
+        raise TrainError(f"bad hyperparameter {key}={_short(value)}: must be true or false")
+    if key in OBJECTS and value is not None:
+        raise TrainError(f"bad hyperparameter {key}={_short(value)}: must be null (SB3 wants "
+                         "a Python object here, which food-fetch train cannot read from YAML)")
+    if algo == "sac" and key == "ent_coef" and isinstance(value, str):
+        return  # "auto" or "auto_<start>", read (and checked) by SB3
+    spec = ALGO_RANGES[algo].get(key, RANGES.get(key))
+    if spec is None or (value is None and key in NULLABLE):
+        return
+    integer, low, high, open_low = spec
+    ok = (isinstance(value, int) if integer else isinstance(value, (int, float)))
+    # (an int is finite, and math.isfinite would overflow on one past a float's range)
+    ok = ok and not isinstance(value, bool) and (isinstance(value, int)
+                                                 or math.isfinite(value))
+    if ok:
+        ok = (value > low if open_low else value >= low) if low is not None else True
+        ok = ok and (high is None or value <= high)
+    if not ok:
+        kind = "an integer" if integer else "a number"
+        if high is not None:
+            bounds = f"in {'(' if open_low else '['}{low:g}, {high:g}]"
+        else:
+            bounds = f"{'>' if open_low else '>='} {low:g}"
+        none = " or null" if key in NULLABLE else ""
+        raise TrainError(f"bad hyperparameter {key}={_short(value)}: must be {kind} "
+                         f"{bounds}{none}")
+
+
+def _check_train_freq(value: Any) -> None:
+    # SAC takes an int (steps) or [n, "step" | "episode"]
+    ok = isinstance(value, int) and not isinstance(value, bool) and value >= 1
+    if isinstance(value, list) and len(value) == 2:
+        n, unit = value
+        ok = (isinstance(n, int) and not isinstance(n, bool) and n >= 1
+              and unit in ("step", "episode"))
+    if not ok:
+        raise TrainError(f"bad hyperparameter train_freq={_short(value)}: must be an integer "
+                         ">= 1 or [n, step|episode]")
+
+
+@dataclass
+class _Plan:
+    """A checked training request: everything decided before any file is touched."""
+
+    algo: str
+    env_id: str
+    total: int
+    seed: int
+    log_dir: Path
+    ctor: dict[str, Any]            # SB3 constructor arguments (new run)
+    run: dict[str, Any]             # run keys as given (recorded in config.yml)
+    source: str                     # where the hyperparameters came from, for messages
+    overrides: dict[str, Any]
+    resume: Path | None = None
+    done: int = 0                   # the checkpoint's steps
+    resume_kwargs: dict[str, Any] = field(default_factory=dict)
+    previous_runs: list[Any] = field(default_factory=list)
+    monitor_starts: dict[int, float] = field(default_factory=dict)  # monitor logs to continue
+    eval_history: dict[str, list[Any]] | None = None
+    append_progress: bool = False
+
+    @property
+    def n_envs(self) -> int:
+        return int(self.run.get("n_envs", 1))
+
+    @property
+    def env_kwargs(self) -> dict[str, Any]:
+        return dict(self.run.get("env_kwargs") or {})
+
+    @property
+    def eval_freq(self) -> int:
+        return int(self.run.get("eval_freq", 0))
+
+    @property
+    def n_eval_episodes(self) -> int:
+        return int(self.run.get("n_eval_episodes", 10))
+
+    @property
+    def checkpoint_freq(self) -> int:
+        return int(self.run.get("checkpoint_freq", 0))
+
+
+def _checkpoint(path: str | Path, algo: str | None) -> tuple[str, dict[str, Any]]:
+    """The checkpoint's algorithm and metadata, checked against ``algo`` (None: any)."""
+    from agents.sb3_agent import ModelLoadError, algo_of_data, model_data
+
+    if not Path(path).is_file():
+        raise TrainError(f"checkpoint not found: {str(path)!r}")
+    try:
+        data = model_data(path)
+    except ModelLoadError as exc:
+        raise TrainError(f"checkpoint {exc}") from None
+    found = algo_of_data(data)
+    steps = data.get("num_timesteps")
+    if found is None or not isinstance(steps, int) or steps < 0:
+        raise TrainError(f"checkpoint {str(path)!r} is not a valid PPO or SAC model")
+    if algo is not None and algo != found:
+        raise TrainError(f"checkpoint {str(path)!r} is a {found} model, not {algo}: "
+                         f"use --algo {found} (or leave --algo out)")
+    return found, data
+
+
+def _read_config(path: Path) -> dict[str, Any] | None:
+    try:
+        cfg = yaml.safe_load(path.read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        return None
+    return cfg if isinstance(cfg, dict) else None
+
+
+def _monitor_start(path: Path) -> float | None:
+    """``t_start`` of a monitor log to continue; None when there is none (or it is empty)."""
+    if not path.is_file() or path.stat().st_size == 0:
+        return None
+    try:
+        with open(path) as fh:
+            head, columns = fh.readline(), fh.readline()
+        start = float(json.loads(head[1:])["t_start"]) if head.startswith("#") else None
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError):
+        start = None
+    # Rows appended under other columns would corrupt the CSV.
+    if start is None or columns.strip().split(",") != ["r", "l", "t", *INFO_KEYS]:
+        raise TrainError(f"{str(path)!r} is not a food-fetch train monitor log, so the resumed "
+                         "run cannot continue it: move it away or use another --log-dir")
+    return start
+
+
+def _eval_history(path: Path, n_eval_episodes: int) -> dict[str, list[Any]] | None:
+    """The evaluations of an earlier run, which the resumed EvalCallback continues."""
+    if not path.is_file():
+        return None
+    import numpy as np
+
+    try:
+        with np.load(path) as npz:
+            hist = {k: npz[k].tolist() for k in npz.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile):
+        hist = {}
+    results = hist.get("results")
+    if ("timesteps" not in hist or "ep_lengths" not in hist or not isinstance(results, list)
+            or not all(isinstance(r, list) for r in results)):
+        raise TrainError(f"{str(path)!r} is not an evaluation log, so the resumed run cannot "
+                         "continue it: move it away or use another --log-dir")
+    if results and len(results[0]) != n_eval_episodes:
+        # EvalCallback saves one array: rows of another length would not stack.
+        raise TrainError(f"bad hyperparameter n_eval_episodes={n_eval_episodes}: the earlier "
+                         f"evaluations in {str(path)!r} have {len(results[0])} episodes each; "
+                         "keep that or use another --log-dir")
+    return hist
+
+
+def _plan(algo: str | None, env_id: str, timesteps: int | None, seed: int, log_dir: Path,
+          resume: str | Path | None, hyperparams_file: str | Path | None,
+          overrides: dict[str, Any], eval_enabled: bool) -> _Plan:
+    """Check the whole request; reads files, writes none."""
+    import inspect
+
+    from stable_baselines3 import PPO, SAC
+
+    ids = env_ids()
+    if env_id not in ids:
+        raise TrainError(f"unknown environment id {env_id!r}; choose from {', '.join(ids)}")
+    if algo is not None and algo not in ALGOS:
+        raise TrainError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGOS)}")
+    data: dict[str, Any] = {}
+    if resume is not None:
+        algo, data = _checkpoint(resume, algo)
+    algo = algo or "ppo"
+    hp = load_hyperparams(algo, env_id, hyperparams_file, overrides)
+    run = {k: hp.pop(k) for k in RUN_KEYS if k in hp}
+    ctor = hp
+    source = str(hyperparams_file or hyperparams_path(algo))
+
+    # The run keys are this project's own: checked here, not by SB3.
+    for key, value in run.items():
+        _check_range(algo, key, value)
+    cls = {"ppo": PPO, "sac": SAC}[algo]
+    policy = run.get("policy", "MlpPolicy")
+    if policy not in cls.policy_aliases:
+        raise TrainError(f"bad hyperparameter policy={_short(policy)}: choose from "
+                         f"{', '.join(cls.policy_aliases)}")
+    env_kwargs = run.get("env_kwargs")
+    if env_kwargs is not None and (not isinstance(env_kwargs, dict)
+                                   or not all(isinstance(k, str) for k in env_kwargs)):
+        raise TrainError(f"bad hyperparameter env_kwargs={_short(env_kwargs)}: must be a "
+                         "mapping of env arguments, e.g. {estimator: none}")
+
+    args = set(inspect.signature(cls.__init__).parameters) - {"self", "policy"}
+    for key, value in ctor.items():
+        if key in RESERVED:
+            raise TrainError(f"bad hyperparameter {key}={_short(value)}: food-fetch train sets "
+                             f"it ({RESERVED[key]})")
+        if key not in args:
+            raise TrainError(f"unknown {algo} hyperparameter {key!r} (neither an argument of "
+                             f"SB3's {cls.__name__} nor one of {', '.join(RUN_KEYS)})")
+        _check_range(algo, key, value)
+        if algo == "sac" and key == "train_freq":
+            _check_train_freq(value)
+
+    done = 0
+    resume_kwargs: dict[str, Any] = {}
+    if resume is not None:
+        done = int(data["num_timesteps"])
+        fixed = [k for k in overrides if k in ctor and k not in RESUMABLE[algo]]
+        fixed += ["policy"] if "policy" in overrides else []
+        if fixed:
+            raise TrainError(f"cannot change {fixed[0]} on --resume (the checkpoint's is kept); "
+                             f"{algo} resumes with new {', '.join(RESUMABLE[algo])} only")
+        resume_kwargs = {k: overrides[k] for k in overrides if k in ctor}
+    if algo == "ppo":
+        n_steps = ctor.get("n_steps", 2048) if resume is None else \
+            resume_kwargs.get("n_steps", data.get("n_steps", 2048))
+        n_envs = int(run.get("n_envs", 1))
+        if isinstance(n_steps, int) and n_steps * n_envs < 2:  # SB3 asserts it for new runs
+            whose = (" (the checkpoint's: override n_steps or n_envs)"
+                     if resume is not None and "n_steps" not in overrides else "")
+            raise TrainError(f"bad hyperparameter n_steps={n_steps}: n_steps x n_envs must be "
+                             f">= 2, got {n_steps} x {n_envs}{whose}")
+
+    total = timesteps if timesteps is not None else run.get("n_timesteps", 10_000)
+    if not isinstance(total, int) or isinstance(total, bool) or total < 1:
+        raise TrainError(f"--timesteps must be an integer >= 1, got {total!r}")
+    if resume is not None and total <= done:
+        raise TrainError(f"--timesteps {total} is not past the checkpoint's {done} steps "
+                         "(--timesteps counts them): nothing to train")
+
+    plan = _Plan(algo=algo, env_id=env_id, total=total, seed=seed, log_dir=log_dir, ctor=ctor,
+                 run=run, source=source, overrides=dict(overrides),
+                 resume=Path(resume) if resume is not None else None, done=done,
+                 resume_kwargs=resume_kwargs)
+    if log_dir.exists() and not log_dir.is_dir():
+        raise TrainError(f"--log-dir {str(log_dir)!r} is a file, not a directory")
+    if resume is not None and log_dir.is_dir():
+        _plan_continuation(plan, eval_enabled)
+    return plan
+
+
+def _plan_continuation(plan: _Plan, eval_enabled: bool) -> None:
+    """Resuming into a log dir that holds a run: continue its logs, never overwrite them."""
+    d = plan.log_dir
+    prev = _read_config(d / "config.yml")
+    if prev is not None:
+        if (prev.get("algo"), prev.get("env")) != (plan.algo, plan.env_id):
+            raise TrainError(f"--log-dir {str(d)!r} holds a {prev.get('algo')} run on "
+                             f"{prev.get('env')}: resume into another --log-dir")
+        finished = prev.get("finished_steps")
+        if isinstance(finished, int) and finished > plan.done:
+            # Continuing from an older checkpoint would interleave two histories (and
+            # overwrite the later checkpoints).
+            raise TrainError(f"--log-dir {str(d)!r} already holds {finished} steps, past the "
+                             f"checkpoint's {plan.done}: resume into another --log-dir")
+        earlier = prev.pop("previous_runs", None)
+        plan.previous_runs = [*(earlier if isinstance(earlier, list) else []), prev]
+    for i in range(plan.n_envs):
+        start = _monitor_start(d / "monitor" / f"{i}.monitor.csv")
+        if start is not None:
+            plan.monitor_starts[i] = start
+    progress = d / "progress.csv"
+    plan.append_progress = progress.is_file() and progress.stat().st_size > 0
+    if eval_enabled and plan.eval_freq > 0:
+        plan.eval_history = _eval_history(d / "eval" / "evaluations.npz", plan.n_eval_episodes)
+
+
+def _blame(exc: BaseException, plan: _Plan) -> str:
+    """The hyperparameters an SB3 error names, else the user's overrides, else the file."""
+    text = str(exc).lower()
+    keys = [k for k in plan.ctor if k.lower() in text or k.replace("_", " ") in text]
+    keys = keys or [k for k in plan.overrides if k in plan.ctor]
+    if keys:
+        return " ".join(f"{k}={_short(plan.ctor[k])}" for k in keys)
+    return f"from {plan.source!r}"
+
+
+def _build(plan: _Plan, verbose: int, eval_enabled: bool) -> tuple[Any, Any, Any]:
+    """The training env, the model and the eval env (or None), built from the user's input
+    with no file written: the monitors get their files in :func:`_open_logs`."""
+    from stable_baselines3 import PPO, SAC
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.utils import set_random_seed
+
+    set_random_seed(plan.seed)
+    # make_vec_env asks for rgb_array frames by default: no rendering while training.
+    env_kwargs = {"render_mode": None, **plan.env_kwargs}
+    envs: list[Any] = []
+    try:
+        envs.append(make_vec_env(plan.env_id, n_envs=plan.n_envs, seed=plan.seed,
+                                 env_kwargs=env_kwargs,
+                                 monitor_kwargs={"info_keywords": INFO_KEYS}))
+        if eval_enabled and plan.eval_freq > 0:
+            envs.append(make_vec_env(plan.env_id, n_envs=1, seed=plan.seed + EVAL_SEED_OFFSET,
+                                     env_kwargs=env_kwargs))
+    except (TypeError, ValueError) as exc:  # the env's own check of env_kwargs
+        for e in envs:
+            e.close()
+        msg = _first_line(exc).split(" was raised from the environment creator")[0]
+        raise TrainError(f"bad hyperparameter env_kwargs={_short(plan.env_kwargs)}: "
+                         f"{msg}") from None
+    env, eval_env = envs[0], (envs[1] if len(envs) > 1 else None)
+
+    cls = {"ppo": PPO, "sac": SAC}[plan.algo]
+    try:
+        if plan.resume is None:
+            try:
+                model = cls(plan.run.get("policy", "MlpPolicy"), env, seed=plan.seed,
+                            device="cpu", verbose=verbose, **plan.ctor)
+            except (TypeError, ValueError, AssertionError, KeyError, RuntimeError) as exc:
+                raise TrainError(f"bad {plan.algo} hyperparameters {_blame(exc, plan)}: "
+                                 f"{_first_line(exc)}") from None
+        else:
+            try:
+                model = cls.load(str(plan.resume), env=env, device="cpu", verbose=verbose,
+                                 **plan.resume_kwargs)
+            except Exception as exc:  # a corrupt or foreign zip: one line, not a traceback
+                raise TrainError(f"checkpoint {str(plan.resume)!r} is not a valid {plan.algo} "
+                                 f"model: {type(exc).__name__}: {_first_line(exc)}") from None
+            buf = _find_replay_buffer(plan.resume) if plan.algo == "sac" else None
+            if buf is not None:
+                try:
+                    model.load_replay_buffer(str(buf))
+                except Exception as exc:  # same: a file the user pointed at
+                    raise TrainError(f"cannot load the replay buffer {str(buf)!r}: "
+                                     f"{type(exc).__name__}: {_first_line(exc)}") from None
+                if model.replay_buffer.n_envs != plan.n_envs:
+                    raise TrainError(f"bad hyperparameter n_envs={plan.n_envs}: the replay "
+                                     f"buffer {str(buf)!r} holds {model.replay_buffer.n_envs}")
+    except TrainError:
+        for e in envs:
+            e.close()
+        raise
+    return env, model, eval_env
+
+
+def _csv_appender(path: Path) -> Any:
+    """SB3's progress.csv writer, continuing the file instead of truncating it."""
+    from stable_baselines3.common.logger import CSVOutputFormat
+
+    class AppendCSV(CSVOutputFormat):
+        def __init__(self, filename: str) -> None:  # no super(): it opens with "w+"
+            # r+: SB3 rewrites the header in place when a column appears, which only ever
+            # lengthens the file; the earlier columns are its keys from the start.
+            self.file = open(filename, "r+")  # closed by the logger
+            self.keys = [k for k in self.file.readline().rstrip("\n").split(",") if k]
+            self.file.seek(0, os.SEEK_END)
+            self.separator = ","
+            self.quotechar = '"'
+
+    return AppendCSV(str(path))
+
+
+def _open_logs(plan: _Plan, env: Any, verbose: int) -> Any:
+    """Create the log dir, give the monitors their files, and return SB3's logger."""
+    from stable_baselines3.common.logger import Logger, make_output_format
+    from stable_baselines3.common.monitor import ResultsWriter
+
+    (plan.log_dir / "monitor").mkdir(parents=True, exist_ok=True)
+    for i, monitor in enumerate(env.envs):  # make_vec_env's Monitor, built without a file
+        start = plan.monitor_starts.get(i)
+        if start is not None:
+            monitor.t_start = start  # times of appended episodes count from the first run
+        monitor.results_writer = ResultsWriter(
+            str(plan.log_dir / "monitor" / str(i)),
+            header={"t_start": monitor.t_start, "env_id": plan.env_id},
+            extra_keys=INFO_KEYS, override_existing=start is None)
+    csv_path = plan.log_dir / "progress.csv"
+    formats = [_csv_appender(csv_path) if plan.append_progress
+               else make_output_format("csv", str(plan.log_dir))]
+    try:
+        import tensorboard  # noqa: F401
+
+        formats.append(make_output_format("tensorboard", str(plan.log_dir)))
+    except ImportError:
+        pass
+    if verbose:
+        formats.append(make_output_format("stdout", str(plan.log_dir)))
+    return Logger(folder=str(plan.log_dir), output_formats=formats)
+
+
+def _plain(value: Any) -> Any:
+    """A loaded model's attribute as YAML: schedules as their starting value, enums by value."""
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, enum.Enum):
+        return _plain(value.value)
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if hasattr(value, "frequency") and hasattr(value, "unit"):  # SAC's TrainFreq, as in YAML
+        unit = _plain(value.unit)
+        return value.frequency if unit == "step" else [value.frequency, unit]
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if callable(value):  # SB3 schedules of a float (clip_range): constant in this project
+        try:
+            return float(value(1.0))
+        except (TypeError, ValueError):
+            pass
+    return str(value)
+
+
+def _write_config(path: Path, config: dict[str, Any]) -> None:
+    tmp = path.with_name(path.name + ".part")  # never a half-written config.yml
+    tmp.write_text(yaml.safe_dump(config, sort_keys=False))
+    os.replace(tmp, path)
+
+
+def _save_model(model: Any, path: Path) -> None:
+    buf = io.BytesIO()
+    model.save(buf)
+    tmp = path.with_name(path.name + ".part")  # an interrupted save keeps the old model.zip
+    tmp.write_bytes(buf.getvalue())
+    os.replace(tmp, path)
 
 
 def _versions() -> dict[str, str]:
@@ -129,107 +640,90 @@ def _find_replay_buffer(checkpoint: Path) -> Path | None:
     return None
 
 
-def train(algo: str, env_id: str, timesteps: int | None, seed: int, log_dir: str | Path, *,
-          resume: str | Path | None = None, hyperparams_file: str | Path | None = None,
-          overrides: dict[str, Any] | None = None, progress: bool = True,
-          threads: int = 1, verbose: int = 0, eval_enabled: bool = True,
+def _eval_callback(plan: _Plan, eval_env: Any) -> Any:
+    from stable_baselines3.common.callbacks import EvalCallback
+
+    cb = EvalCallback(eval_env, n_eval_episodes=plan.n_eval_episodes,
+                      eval_freq=max(1, plan.eval_freq // plan.n_envs),
+                      log_path=str(plan.log_dir / "eval"),
+                      best_model_save_path=str(plan.log_dir / "eval"), deterministic=True,
+                      verbose=0)
+    hist = plan.eval_history
+    if hist:  # continue the earlier evaluations; a new best must beat the earlier best
+        cb.evaluations_timesteps = list(hist["timesteps"])
+        cb.evaluations_results = list(hist["results"])
+        cb.evaluations_length = list(hist["ep_lengths"])
+        cb.evaluations_successes = list(hist.get("successes", []))
+        if cb.evaluations_results:
+            cb.best_mean_reward = max(sum(r) / len(r) for r in cb.evaluations_results)
+    return cb
+
+
+def train(algo: str | None, env_id: str, timesteps: int | None, seed: int,
+          log_dir: str | Path, *, resume: str | Path | None = None,
+          hyperparams_file: str | Path | None = None, overrides: dict[str, Any] | None = None,
+          progress: bool = True, threads: int = 1, verbose: int = 0, eval_enabled: bool = True,
           command: list[str] | None = None) -> Path:
     """Train and save ``log_dir/model.zip``; returns its path.
 
-    ``timesteps`` is the total budget (the YAML's ``n_timesteps`` when None); resuming from
-    ``resume`` (a checkpoint .zip) continues the step count up to that total.
+    ``algo`` None: the checkpoint's algorithm when resuming, else PPO.  ``timesteps`` is the
+    total budget (the YAML's ``n_timesteps`` when None), the checkpoint's steps included when
+    resuming from ``resume`` (a checkpoint .zip).  PPO collects whole rollouts of
+    ``n_steps x n_envs`` steps, so it may stop up to one rollout past the budget.
     """
-    ids = env_ids()
-    if env_id not in ids:
-        raise TrainError(f"unknown environment id {env_id!r}; choose from {', '.join(ids)}")
-    hp = load_hyperparams(algo, env_id, hyperparams_file, overrides)
-    total = int(timesteps if timesteps is not None else hp.get("n_timesteps", 10_000))
-    if total < 1:
-        raise TrainError(f"--timesteps must be >= 1, got {total}")
-    if resume is not None and not Path(resume).is_file():
-        raise TrainError(f"checkpoint not found: {str(resume)!r}")
-    log_dir = Path(log_dir)
-    log_dir.mkdir(parents=True, exist_ok=True)
-
     import torch
-    from stable_baselines3 import PPO, SAC
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
-    from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.logger import configure
-    from stable_baselines3.common.utils import set_random_seed
+    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 
+    log_dir = Path(log_dir)
+    plan = _plan(algo, env_id, timesteps, seed, log_dir, resume, hyperparams_file,
+                 dict(overrides or {}), eval_enabled)
     torch.set_num_threads(max(1, int(threads)))
-    set_random_seed(seed)
-    cls = {"ppo": PPO, "sac": SAC}[algo]
-    run = {k: hp.pop(k) for k in RUN_KEYS if k in hp}
-    n_envs = int(run.get("n_envs", 1))
-    # make_vec_env asks for rgb_array frames by default: no rendering while training.
-    env_kwargs = {"render_mode": None, **dict(run.get("env_kwargs") or {})}
-    info_keys = ("fetch_rate", "max_log_strain", "is_success")
-    (log_dir / "monitor").mkdir(exist_ok=True)
-    env = make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs,
-                       monitor_dir=str(log_dir / "monitor"),
-                       monitor_kwargs={"info_keywords": info_keys})
-    formats = ["csv"]
+    env, model, eval_env = _build(plan, verbose, eval_enabled)
+    # Only now, with everything checked and built, does the log dir change.
     try:
-        import tensorboard  # noqa: F401
-
-        formats.append("tensorboard")
-    except ImportError:
-        pass
-    if verbose:
-        formats.append("stdout")
-    logger = configure(str(log_dir), formats)
-
-    try:
-        if resume is not None:
-            model = cls.load(str(resume), env=env, device="cpu")
-            buf = _find_replay_buffer(Path(resume)) if algo == "sac" else None
-            if buf is not None:
-                model.load_replay_buffer(str(buf))
-        else:
-            model = cls(run.get("policy", "MlpPolicy"), env, seed=seed, device="cpu",
-                        verbose=verbose, **hp)
-    except (TypeError, ValueError) as exc:
+        logger = _open_logs(plan, env, verbose)
+    except OSError as exc:
         env.close()
-        raise TrainError(f"bad {algo} hyperparameters for {env_id}: {exc}") from None
+        if eval_env is not None:
+            eval_env.close()
+        raise TrainError(f"cannot write to --log-dir {str(log_dir)!r}: {exc.strerror}") from None
     model.set_logger(logger)
-    done = int(model.num_timesteps) if resume is not None else 0
 
-    config = {"algo": algo, "env": env_id, "seed": seed, "timesteps": total,
-              "hyperparams": {**hp, **run}, "resumed_from": str(resume) if resume else None,
-              "resumed_at_step": done if resume else None, "threads": threads,
-              "versions": _versions(),
+    if plan.resume is None:
+        hyperparams = {**plan.ctor, **plan.run}
+    else:  # what the loaded model uses: the checkpoint's arguments and the overrides applied
+        hyperparams = {**{k: _plain(getattr(model, k)) for k in plan.ctor if hasattr(model, k)},
+                       **plan.run}
+    config = {"algo": plan.algo, "env": env_id, "seed": seed, "timesteps": plan.total,
+              "hyperparams": hyperparams,
+              "resumed_from": str(resume) if resume is not None else None,
+              "resumed_at_step": plan.done if resume is not None else None,
+              "threads": threads, "versions": _versions(),
               "command": command if command is not None else sys.argv,
               "started": time.strftime("%Y-%m-%d %H:%M:%S")}
-    (log_dir / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+    if plan.previous_runs:
+        config["previous_runs"] = plan.previous_runs
+    _write_config(log_dir / "config.yml", config)
 
-    callbacks: list[Any] = [_progress_callback(total, progress)]
-    ckpt_freq = int(run.get("checkpoint_freq", 0))
-    if ckpt_freq > 0:
+    callbacks: list[Any] = [_progress_callback(plan.total, progress)]
+    if plan.checkpoint_freq > 0:
         callbacks.append(CheckpointCallback(
-            save_freq=max(1, ckpt_freq // n_envs), save_path=str(log_dir / "checkpoints"),
-            save_replay_buffer=algo == "sac"))
-    eval_env = None
-    eval_freq = int(run.get("eval_freq", 0))
-    if eval_enabled and eval_freq > 0:
-        eval_env = make_vec_env(env_id, n_envs=1, seed=seed + EVAL_SEED_OFFSET,
-                                env_kwargs=env_kwargs)
-        callbacks.append(EvalCallback(
-            eval_env, n_eval_episodes=int(run.get("n_eval_episodes", 10)),
-            eval_freq=max(1, eval_freq // n_envs), log_path=str(log_dir / "eval"),
-            best_model_save_path=str(log_dir / "eval"), deterministic=True, verbose=0))
+            save_freq=max(1, plan.checkpoint_freq // plan.n_envs),
+            save_path=str(log_dir / "checkpoints"), save_replay_buffer=plan.algo == "sac"))
+    if eval_env is not None:
+        callbacks.append(_eval_callback(plan, eval_env))
     wall = time.perf_counter()
     try:
-        model.learn(total_timesteps=max(total - done, 0), callback=CallbackList(callbacks),
+        model.learn(total_timesteps=plan.total - plan.done, callback=CallbackList(callbacks),
                     reset_num_timesteps=resume is None, progress_bar=False)
     finally:
         out = log_dir / "model.zip"
-        model.save(str(out))
+        _save_model(model, out)
         config.update(finished_steps=int(model.num_timesteps),
                       wall_time_s=round(time.perf_counter() - wall, 1),
                       finished=time.strftime("%Y-%m-%d %H:%M:%S"))
-        (log_dir / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+        _write_config(log_dir / "config.yml", config)
+        logger.close()
         env.close()
         if eval_env is not None:
             eval_env.close()
