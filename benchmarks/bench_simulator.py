@@ -85,8 +85,8 @@ def in_run_ratio(sim: FetchSimulator, action: FetchAction) -> float:
 
 
 def bench(name: str, pieces, action: FetchAction, repeats: int = 5,
-          timestep: float | None = None) -> dict[str, float]:
-    sim = FetchSimulator(pieces, timestep=timestep)
+          timestep: float | None = None, impratio: float | None = None) -> dict[str, float]:
+    sim = FetchSimulator(pieces, timestep=timestep, impratio=impratio)
     sim.run("fetch", action)  # compile and warm up
     walls, bares, visco, in_run = [], [], [], []
     for _ in range(repeats):  # interleaved, so load changes hit all alike
@@ -103,7 +103,8 @@ def bench(name: str, pieces, action: FetchAction, repeats: int = 5,
     print(f"{name:26s} {n * dt / wall:6.1f}x real time  {n / wall:7.0f} steps/s  "
           f"bare mj_step {n / bare:7.0f} steps/s  ratio {ratio:4.2f}  "
           f"ratio to mj_step on the same states {ratio_visco:4.2f}  in-run {ratio_in_run:4.2f}")
-    return {"realtime": n * dt / wall, "steps_per_s": n / wall, "ratio": ratio,
+    return {"realtime": n * dt / wall, "simulated": n * dt, "wall": wall,
+            "steps_per_s": n / wall, "ratio": ratio,
             "ratio_visco": ratio_visco, "ratio_in_run": ratio_in_run}
 
 
@@ -115,15 +116,21 @@ if __name__ == "__main__":
     # pieces wake, how long the solver takes in each contact event), and that trajectory is
     # chaotic: any change to the simulator moves one seed's figure by up to 2x.  So the
     # diced figure is the median over several seeded mixes, one run each.
-    # The default 5 ms step, then the opt-in 10 ms one (FetchSimulator(timestep=0.01), the
-    # env's fetch_timestep), which loses outcome agreement (benchmarks/bench_step_size.py).
-    for timestep, label in ((None, ""), (0.01, " at 10 ms")):
+    # The default (5 ms step, the multi-piece impratio 100), then in the same sitting the
+    # impratio 1000 multi-piece scenes had before session 17 (the VM's speed drifts by a third
+    # from day to day: compare within one run), then the opt-in 10 ms step
+    # (FetchSimulator(timestep=0.01), the env's fetch_timestep), which loses outcome agreement
+    # (benchmarks/bench_step_size.py).
+    for timestep, impratio, label in ((None, None, ""), (None, 1000.0, " at impratio 1000"),
+                                      (0.01, None, " at 10 ms")):
         rows = [bench(f"9-piece diced mix{label}, seed {seed}",
                       diced_mix(np.random.default_rng(seed), n_pieces=9),
-                      FetchAction(theta_d=0.085), repeats=1, timestep=timestep)
+                      FetchAction(theta_d=0.085), repeats=1, timestep=timestep,
+                      impratio=impratio)
                 for seed in range(1, 6)]
         print(f"{'9-piece diced mix' + label + ', median':26s} "
-              f"{statistics.median(r['realtime'] for r in rows):6.1f}x real time  "
+              f"{statistics.median(r['realtime'] for r in rows):6.1f}x real time (in all "
+              f"{sum(r['simulated'] for r in rows) / sum(r['wall'] for r in rows):.1f}x)  "
               f"ratio {statistics.median(r['ratio'] for r in rows):4.2f}  ratio to mj_step on "
               f"the same states {statistics.median(r['ratio_visco'] for r in rows):4.2f}  "
               f"in-run {statistics.median(r['ratio_in_run'] for r in rows):4.2f}")

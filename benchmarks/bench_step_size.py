@@ -13,7 +13,14 @@ with each piece moved 1 nm along x (a seeded sign per piece), a change far below
 physical.  A twin's agreement with its own step's run is that step's chaos floor: what the
 contact events' sensitivity alone reorders, with no change to the physics.
 
+``--impratios`` pairs each step with a friction impratio (the scene's default where omitted:
+1000 for one piece, 100 for several, ``fetch_env.scene``), so the same table judges impratio:
+``--steps 0.0025,0.005,0.005 --impratios 1000,1000,100`` compares the multi-piece default
+(5 ms, 100) with 5 ms at 1000 against a 2.5 ms reference at 1000.  Each run's speed is also
+summed: total simulated time over total wall time (with ``--workers`` > 1, relative only).
+
 Run: python benchmarks/bench_step_size.py [--seeds 20] [--workers 2] [--twins] [--json FILE]
+       [--steps 0.0025,0.005,0.01] [--impratios 1000,1000,100]
 """
 
 from __future__ import annotations
@@ -36,24 +43,29 @@ CRUSHED_LOG_STRAIN = 1.0  # above it a piece's one-cell flex has inverted (READM
 TWIN_SHIFT = 1e-9  # [m] how far a twin's pieces are moved: physically nothing
 
 
-def run_mix(seed: int, steps: tuple[float, ...], theta_d: float,
-            twins: bool = False) -> list[dict]:
-    """One seeded diced mix (6-12 pieces), fetched once at each step (then, with ``twins``,
-    once more at each step with every piece moved by ``TWIN_SHIFT``)."""
+def run_mix(seed: int, steps: tuple[float, ...], theta_d: float, twins: bool = False,
+            impratios: tuple[float | None, ...] | None = None) -> list[dict]:
+    """One seeded diced mix (6-12 pieces), fetched once at each step with its impratio
+    (None: the scene's default), then, with ``twins``, once more at each with every piece
+    moved by ``TWIN_SHIFT``."""
     rng = np.random.default_rng(seed)
     pieces = diced_mix(rng)
     signs = rng.choice([-1.0, 1.0], size=len(pieces))
     moved = tuple(dataclasses.replace(p, x=p.x + s * TWIN_SHIFT)
                   for p, s in zip(pieces, signs, strict=True))
+    configs = list(zip(steps, impratios or (None,) * len(steps), strict=True))
     out = []
-    for dt, layout in [(dt, pieces) for dt in steps] + [(dt, moved) for dt in steps if twins]:
-        r = FetchSimulator(layout, timestep=dt).run("fetch", FetchAction(theta_d=theta_d))
+    for (dt, imp), layout in ([(c, pieces) for c in configs]
+                              + [(c, moved) for c in configs if twins]):
+        r = FetchSimulator(layout, timestep=dt, impratio=imp).run(
+            "fetch", FetchAction(theta_d=theta_d))
         out.append({"fetched": [bool(p["fetched"]) for p in r.pieces],
                     "log_strain": max(max(p["max_log_strain_clamp"], p["max_log_strain_lift"])
                                       for p in r.pieces),
                     "fetch_rate": r.fetch_rate,
                     "warned": bool(r.extra["mujoco_warnings"]),
-                    "realtime": r.n_steps * r.timestep / r.wall_time})
+                    "realtime": r.n_steps * r.timestep / r.wall_time,
+                    "simulated": r.n_steps * r.timestep, "wall": r.wall_time})
     return out
 
 
@@ -65,6 +77,9 @@ def main() -> None:
     p.add_argument("--steps", type=lambda s: tuple(float(x) for x in s.split(",")),
                    default=(0.0025, 0.005, 0.01), help="physics steps [s]; the first is the "
                    "reference (default 0.0025,0.005,0.01)")
+    p.add_argument("--impratios", type=lambda s: tuple(float(x) for x in s.split(",")),
+                   default=None, help="friction impratio of each step's runs, as many as "
+                   "--steps (default: the scene's, 1000 for one piece and 100 for several)")
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--twins", action="store_true",
                    help="also run each step with the pieces moved 1 nm (the chaos floor)")
@@ -72,6 +87,8 @@ def main() -> None:
     args = p.parse_args()
     if args.seeds < 1 or args.workers < 1 or len(args.steps) < 2:
         p.error("--seeds and --workers must be >= 1 and --steps must name at least two steps")
+    if args.impratios is not None and len(args.impratios) != len(args.steps):
+        p.error(f"--impratios names {len(args.impratios)} values for {len(args.steps)} steps")
     if args.json and not os.path.isdir(os.path.dirname(os.path.abspath(args.json))):
         p.error(f"--json {args.json}: no such directory")
     seeds = range(args.first_seed, args.first_seed + args.seeds)
@@ -81,7 +98,8 @@ def main() -> None:
           f"{args.workers} worker(s)")
     with ProcessPoolExecutor(args.workers) as pool:
         runs = list(pool.map(run_mix, seeds, [args.steps] * len(seeds),
-                             [args.theta_d] * len(seeds), [args.twins] * len(seeds)))
+                             [args.theta_d] * len(seeds), [args.twins] * len(seeds),
+                             [args.impratios] * len(seeds)))
     n_pieces = sum(len(r[0]["fetched"]) for r in runs)
 
     def rate_shift(k: int, ref: int) -> str:
@@ -97,9 +115,10 @@ def main() -> None:
         return f"{agree}/{n_pieces} ({agree / n_pieces:.1%}), whole mixes {whole:2d}/{len(runs)}"
 
     n = len(args.steps)
-    labels = [f"{dt * 1000:5.2f} ms" for dt in args.steps]
+    labels = [f"{dt * 1000:5.2f} ms" + ("" if imp is None else f" at impratio {imp:g}")
+              for dt, imp in zip(args.steps, args.impratios or (None,) * n, strict=True)]
     twin_label = f"pieces moved {TWIN_SHIFT * 1e9:g} nm"
-    labels += [f"{dt * 1000:5.2f} ms, {twin_label}" for dt in args.steps] if args.twins else []
+    labels += [f"{label}, {twin_label}" for label in labels] if args.twins else []
     for k, label in enumerate(labels):
         crushed = sum(r[k]["log_strain"] > CRUSHED_LOG_STRAIN for r in runs)
         warned = sum(r[k]["warned"] for r in runs)
@@ -107,7 +126,8 @@ def main() -> None:
                   f"agree with reference {agreement(k, 0)}, {rate_shift(k, 0)}")
         print(f"step {label}: {vs_ref}; crushed {crushed}, MuJoCo warnings {warned}, mean "
               f"fetch rate {statistics.mean(r[k]['fetch_rate'] for r in runs):.3f}, median "
-              f"{statistics.median(r[k]['realtime'] for r in runs):.2f}x real time")
+              f"{statistics.median(r[k]['realtime'] for r in runs):.2f}x real time, in all "
+              f"{sum(r[k]['simulated'] for r in runs) / sum(r[k]['wall'] for r in runs):.2f}x")
         if k >= n:  # a twin: its agreement with its own step's run is the chaos floor
             print(f"    chaos floor (with the unmoved run at the same step): {agreement(k, k - n)}"
                   f", {rate_shift(k, k - n)}")

@@ -307,7 +307,8 @@ class FetchSimulator:
     def __init__(self, pieces: tuple[Piece, ...] | list[Piece],
                  geometry: Geometry | None = None, record_hz: float = 100.0,
                  timestep: float | None = None, impratio: float | None = None) -> None:
-        """``timestep`` and ``impratio`` override the base scene's (5 ms, 1000) where given."""
+        """``timestep`` and ``impratio`` override the scene's (5 ms; impratio 1000 for one
+        piece, 100 for several: :data:`fetch_env.scene.MULTI_PIECE_IMPRATIO`) where given."""
         require_finite("record_hz", record_hz)
         require(record_hz >= 100, "record_hz", record_hz, ">= 100 Hz")
         if timestep is not None:

@@ -33,6 +33,18 @@ MESH_COUNT = {"cube": 3, "ellipsoid": 4, "sphere": 4}
 # modulus instead (reported per piece as ``young_simulated``): still > 40x stiffer than the
 # soft foods and held by a motor that stalls at 2 N m, they deform < 1 % in any clamp.
 CONDITIONING_LIMIT = 1e4
+# Friction impratio of scenes with more than one piece (the base scene's 1000 stays for one
+# piece: every physics test, every probe, the Block env).  impratio makes MuJoCo's soft
+# friction nearly Coulomb: a held contact creeps at a speed ~ 1 / impratio.  It also sets how
+# much of each held contact's cone the Newton solve must refold every iteration, and a diced
+# fetch's ~240 held contacts made that most of its cost.  Measured over 40 diced mixes
+# (benchmarks/bench_step_size.py --steps 0.0025,0.005,0.005 --impratios 1000,1000,100):
+# at 100 the pieces end fetched-or-not as at 2.5 ms and 1000 in 91.8 % of cases, against
+# 92.4 % at 1000 and a 93 % chaos floor (the same run with every piece moved 1 nm), the
+# fetch rate moves +0.03 +- 0.03, and the mixes run 1.3x faster in all.  A held cube's
+# creep over a 1 s air hold stays within a few micrometres of its creep at 1000
+# (tests/test_fetch.py).  At 30 one mix in 40 under-converged MuJoCo's M+K solve.
+MULTI_PIECE_IMPRATIO = 100.0
 MIN_CONTACT_TIMECONST = 0.001  # [s] the stiffest contact Geometry allows (stable at the 5 ms step)
 BLADE_HALF_THICKNESS = 0.002  # [m] thick enough that no food vertex can reach the far side
 
@@ -173,8 +185,9 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
                 timestep: float | None = None, impratio: float | None = None) -> Scene:
     """Compile the base scene with ``pieces`` on the plate and the end-effector above them.
 
-    Validates everything first (pieces, overlaps, geometry) so that nothing is compiled for
-    bad input.
+    ``timestep`` and ``impratio`` override the base scene's (5 ms; impratio 1000 for one
+    piece, :data:`MULTI_PIECE_IMPRATIO` for several).  Validates everything first (pieces,
+    overlaps, geometry) so that nothing is compiled for bad input.
     """
     pieces = tuple(pieces)
     geometry = geometry or Geometry()
@@ -207,6 +220,8 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         spec.option.timestep = timestep
     if impratio is not None:
         spec.option.impratio = impratio
+    elif len(pieces) > 1:
+        spec.option.impratio = MULTI_PIECE_IMPRATIO
     stage = spec.body("stage")
     stage.pos = [stage_xy[0], stage_xy[1], geometry.hinge_height]
     for side, sign in (("left", -1.0), ("right", 1.0)):

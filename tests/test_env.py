@@ -275,6 +275,19 @@ def test_a_piece_squeezed_through_a_blade_takes_the_whole_deformation_penalty() 
     assert info["is_success"] is False
 
 
+def test_fetch_impratio_reaches_the_fetch_s_scene() -> None:
+    from fetch_env.scene import MULTI_PIECE_IMPRATIO
+
+    pieces = preset_scene("block")
+    env = FoodFetchEnv(layout="diced", estimator="none")
+    assert env.fetch_impratio is None
+    two = sample_scene("diced", np.random.default_rng(0))
+    assert env._sim_for(two).scene_for("fetch").model.opt.impratio == MULTI_PIECE_IMPRATIO
+    assert env._sim_for(pieces).scene_for("fetch").model.opt.impratio == 1000.0
+    env = FoodFetchEnv(layout="diced", estimator="none", fetch_impratio=1000)
+    assert env._sim_for(two).scene_for("fetch").model.opt.impratio == 1000.0
+
+
 def test_fetch_timestep_defaults_to_the_base_scene_step_and_sets_the_fetch_s_step() -> None:
     from fetch_env.scene import build_scene
 
@@ -452,6 +465,10 @@ def test_bad_input_gives_clear_errors() -> None:
         gym.make("FoodFetch-Block-v0", contact_timeconst=1e-5)
     with pytest.raises(InvalidParameterError, match=r"fetch_timestep.*0.05"):
         gym.make("FoodFetch-Block-v0", fetch_timestep=0.05)
+    with pytest.raises(InvalidParameterError, match=r"fetch_impratio.*0.5"):
+        gym.make("FoodFetch-Diced-v0", fetch_impratio=0.5)
+    with pytest.raises(InvalidParameterError, match=r"fetch_impratio.*nan"):
+        gym.make("FoodFetch-Diced-v0", fetch_impratio=float("nan"))
     env = make()
     with pytest.raises(RuntimeError, match="reset"):
         env.unwrapped.simulate_action(GENTLE)
