@@ -322,6 +322,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         require(math.isfinite(fetch_timestep) and 0.001 <= fetch_timestep <= 0.01,
                 "fetch_timestep", fetch_timestep, "in [0.001, 0.01] s")
         require(fetch_impratio is None or (isinstance(fetch_impratio, (int, float))
+                                           and not isinstance(fetch_impratio, bool)
                                            and math.isfinite(fetch_impratio)
                                            and 1 <= fetch_impratio <= 1e4),
                 "fetch_impratio", fetch_impratio, "None or in [1, 1e4]")

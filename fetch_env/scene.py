@@ -41,9 +41,10 @@ CONDITIONING_LIMIT = 1e4
 # (benchmarks/bench_step_size.py --steps 0.0025,0.005,0.005 --impratios 1000,1000,100):
 # at 100 the pieces end fetched-or-not as at 2.5 ms and 1000 in 91.8 % of cases, against
 # 92.4 % at 1000 and a 93 % chaos floor (the same run with every piece moved 1 nm), the
-# fetch rate moves +0.03 +- 0.03, and the mixes run 1.3x faster in all.  A held cube's
-# creep over a 1 s air hold stays within a few micrometres of its creep at 1000
-# (tests/test_fetch.py).  At 30 one mix in 40 under-converged MuJoCo's M+K solve.
+# fetch rate moves +0.03 +- 0.03, and the mixes run 1.3x faster in all.  The middle of three
+# cubes in a row, held only by its neighbours' friction, sags over a 1 s air hold within
+# 10 um of its sag at 1000 (tests/test_fetch.py).  At 30 one mix in 40 under-converged
+# MuJoCo's M+K solve (docs/env_results.md, "The multi-piece impratio").
 MULTI_PIECE_IMPRATIO = 100.0
 MIN_CONTACT_TIMECONST = 0.001  # [s] the stiffest contact Geometry allows (stable at the 5 ms step)
 BLADE_HALF_THICKNESS = 0.002  # [m] thick enough that no food vertex can reach the far side
