@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import platform
@@ -33,6 +34,40 @@ def _out_dir(text: str) -> Path:
     return p
 
 
+def _env_kwarg(text: str) -> tuple[str, Any]:
+    """KEY=VALUE, the value read as JSON where it is JSON (1000, 0.5, true, null, "x"),
+    else as the bare string (estimator=oracle).  Never evaluated as code."""
+    key, sep, raw = text.partition("=")
+    if not sep or not key.isidentifier():
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    try:
+        return key, json.loads(raw)
+    except json.JSONDecodeError:
+        return key, raw
+
+
+def _check_env_kwargs(env_id: str, pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """The env kwargs as a dict, checked by building the env once (no reset, no physics):
+    the env's own validation names a bad value, a TypeError an unknown name."""
+    import gymnasium as gym
+
+    keys = [k for k, _ in pairs]
+    twice = next((k for i, k in enumerate(keys) if k in keys[:i]), None)
+    if twice is not None:
+        raise UsageError(f"food-fetch evaluate: --env-kwargs: {twice} given twice")
+    kwargs = dict(pairs)
+    if "render_mode" in kwargs:
+        raise UsageError("food-fetch evaluate: --env-kwargs: render_mode is not an evaluation "
+                         "setting (--video records the first episodes)")
+    try:
+        gym.make(env_id, **kwargs).close()
+    except (TypeError, ValueError) as exc:  # InvalidParameterError is a ValueError
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        msg = msg.split(" was raised from the environment creator")[0]  # gymnasium's suffix
+        raise UsageError(f"food-fetch evaluate: --env-kwargs: {msg}") from None
+    return kwargs
+
+
 def _json_safe(x: Any) -> Any:
     """NaN/inf -> None, so the file is strict JSON (a diverged episode has no LE)."""
     if isinstance(x, float):
@@ -46,9 +81,10 @@ def _json_safe(x: Any) -> Any:
 
 def _payload(args: argparse.Namespace, agents: list[str], records: list[dict[str, Any]],
              summary: dict[str, Any], interrupted: bool, wall: float,
-             describe: dict[str, Any]) -> dict[str, Any]:
+             describe: dict[str, Any], env_kwargs: dict[str, Any]) -> dict[str, Any]:
     return {
-        "env": args.env, "episodes": args.episodes, "seed": args.seed,
+        "env": args.env, "env_kwargs": env_kwargs,
+        "episodes": args.episodes, "seed": args.seed,
         "workers": args.workers, "search_episodes": args.search_episodes,
         "interrupted": interrupted, "episodes_finished": len(records),
         "wall_time_s": round(wall, 2),
@@ -82,6 +118,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.env not in ids:
         raise UsageError(f"food-fetch evaluate: unknown environment id {args.env!r}; "
                          f"choose from {', '.join(ids)}")
+    env_kwargs = _check_env_kwargs(args.env, args.env_kwargs)
     agents = list(dict.fromkeys(args.agent or ["random", "study", "model-based"]))
     describe = {}
     for spec in agents:  # fail on a bad name or path before any episode runs
@@ -95,7 +132,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         except Exception as exc:  # e.g. a model file SB3 cannot read
             raise UsageError(f"food-fetch evaluate: cannot use agent {spec!r}: {exc}") from None
     n_search = min(args.search_episodes or args.episodes, args.episodes)
-    tasks = [Task(a, args.env, i, args.seed + i)
+    tasks = [Task(a, args.env, i, args.seed + i, env_kwargs)
              for i in range(args.episodes) for a in agents
              if not (a == REFERENCE and i >= n_search)]
     # A worker beyond one per task only costs a process start (MuJoCo, numpy imports).
@@ -115,7 +152,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         bar.close()
     wall = time.perf_counter() - wall
     summary = summarize(records, agents)
-    payload = _payload(args, agents, records, summary, interrupted, wall, describe)
+    payload = _payload(args, agents, records, summary, interrupted, wall, describe, env_kwargs)
     if args.json is not None:
         write_json(args.json, _json_safe(payload))
     if args.csv is not None:
@@ -142,7 +179,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.video is not None:
         existed = args.video.exists()
         try:
-            videos = record_videos(args.video, agents, args.env, args.seed, {})
+            videos = record_videos(args.video, agents, args.env, args.seed, env_kwargs)
         except Exception as exc:  # no OpenGL context (headless without MUJOCO_GL=egl)
             if not existed and args.video.is_dir() and not any(args.video.iterdir()):
                 args.video.rmdir()  # leave no empty folder behind a failed call
@@ -171,6 +208,10 @@ def register(sub: Any) -> None:
     p.add_argument("--env", default="FoodFetch-Block-v0", metavar="ID",
                    help="environment id: FoodFetch-Block-v0, -Row-v0, -TwoRows-v0 or "
                    "-Diced-v0 (default: FoodFetch-Block-v0)")
+    p.add_argument("--env-kwargs", type=_env_kwarg, nargs="+", default=[], metavar="KEY=VALUE",
+                   help="keyword arguments of the environment, values read as JSON where "
+                   "they are JSON, else as strings (e.g. fetch_impratio=1000 "
+                   "estimator=oracle); checked before any episode runs")
     p.add_argument("--episodes", type=_positive_int, default=20, metavar="N",
                    help="episodes (scenes) per agent (default: 20)")
     p.add_argument("--seed", type=seed, default=0, metavar="S",

@@ -89,6 +89,9 @@ def main() -> None:
         p.error("--seeds and --workers must be >= 1 and --steps must name at least two steps")
     if args.impratios is not None and len(args.impratios) != len(args.steps):
         p.error(f"--impratios names {len(args.impratios)} values for {len(args.steps)} steps")
+    bad = [x for x in args.impratios or () if not 1 <= x <= 1e4]  # (NaN fails too)
+    if bad:
+        p.error(f"--impratios: {bad[0]} is not in [1, 1e4]")
     if args.json and not os.path.isdir(os.path.dirname(os.path.abspath(args.json))):
         p.error(f"--json {args.json}: no such directory")
     seeds = range(args.first_seed, args.first_seed + args.seeds)

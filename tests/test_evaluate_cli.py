@@ -28,7 +28,7 @@ def test_help_is_clear(capsys: pytest.CaptureFixture[str]) -> None:
     assert exc.value.code == 0
     out = capsys.readouterr().out
     for opt in ("--agent", "--env", "--episodes", "--seed", "--workers", "--json", "--csv",
-                "--video", "--plots", "--search-episodes", "95 %", "regret"):
+                "--video", "--plots", "--search-episodes", "--env-kwargs", "95 %", "regret"):
         assert opt in out
 
 
@@ -48,6 +48,12 @@ def test_help_is_clear(capsys: pytest.CaptureFixture[str]) -> None:
     (["--csv", "."], "--csv: not a file name: '.'"),
     (["--csv", "/"], "--csv: not a file name: '/'"),
     (["--plots", "/proc/version"], "--plots: not a directory"),
+    (["--env-kwargs", "fetch_impratio=0.5"],
+     "--env-kwargs: fetch_impratio must be None or in [1, 1e4], got 0.5"),
+    (["--env-kwargs", "holdd=1"], "unexpected keyword argument 'holdd'"),
+    (["--env-kwargs", "foo"], "--env-kwargs: expected KEY=VALUE, got 'foo'"),
+    (["--env-kwargs", "hold=1", "hold=2"], "--env-kwargs: hold given twice"),
+    (["--env-kwargs", "render_mode=human"], "render_mode is not an evaluation setting"),
 ])
 def test_mistakes_are_one_line_and_exit_2(argv: list[str], fragment: str,
                                          monkeypatch: pytest.MonkeyPatch,
@@ -138,6 +144,35 @@ def test_json_contract_and_table(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert not d["interrupted"]
     assert len(csv.read_text().strip().splitlines()) == 1 + 4
     assert "model-based" in out and "reward" in out
+
+
+def test_env_kwargs_reach_every_episode(tmp_path: Path,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """``--env-kwargs`` builds the evaluation's env with them: the episode equals one run on
+    ``gym.make(id, **kwargs)`` by hand, and the JSON records them (values read as JSON)."""
+    import gymnasium as gym
+    import numpy as np
+
+    from agents.baselines import StudyAgent
+
+    js = tmp_path / "e.json"
+    code, _out, err = run_cli(["evaluate", "--agent", "study", "--episodes", "1", "--seed", "5",
+                               "--env-kwargs", "estimator=oracle", "hold=0.2",
+                               "--json", str(js), "--json-episodes", "--quiet"], capsys)
+    assert code == 0, err
+    d = json.loads(js.read_text())
+    assert d["env_kwargs"] == {"estimator": "oracle", "hold": 0.2}
+    (episode,) = d["episodes_detail"]
+    env = gym.make("FoodFetch-Block-v0", estimator="oracle", hold=0.2)
+    obs, _ = env.reset(seed=5)
+    agent = StudyAgent()
+    agent.seed(5)
+    agent.begin_episode(env)
+    _, reward, _, _, info = env.step(np.asarray(agent.act(obs), np.float32))
+    env.close()
+    assert episode["reward"] == pytest.approx(float(reward), abs=1e-12)
+    assert episode["time_per_fetch"] == pytest.approx(info["episode_time"], abs=1e-12)
+    assert info["episode_time"] < 1.8  # the 0.2 s hold, not the default 0.5 s (1.95 s)
 
 
 def test_interrupted_evaluation_still_writes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
