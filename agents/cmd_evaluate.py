@@ -12,7 +12,15 @@ import time
 from pathlib import Path
 from typing import Any
 
-from agents.cli_common import UsageError, finite, require_extra, seed, writable, write_json
+from agents.cli_common import (
+    UsageError,
+    env_error_line,
+    finite,
+    require_extra,
+    seed,
+    writable,
+    write_json,
+)
 
 
 def _positive_int(text: str) -> int:
@@ -62,9 +70,7 @@ def _check_env_kwargs(env_id: str, pairs: list[tuple[str, Any]]) -> dict[str, An
     try:
         gym.make(env_id, **kwargs).close()
     except (TypeError, ValueError) as exc:  # InvalidParameterError is a ValueError
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        msg = msg.split(" was raised from the environment creator")[0]  # gymnasium's suffix
-        raise UsageError(f"food-fetch evaluate: --env-kwargs: {msg}") from None
+        raise UsageError(f"food-fetch evaluate: --env-kwargs: {env_error_line(exc)}") from None
     return kwargs
 
 

@@ -46,6 +46,8 @@ from typing import Any
 
 import yaml
 
+from agents.cli_common import env_error_line
+
 ALGOS: tuple[str, ...] = ("ppo", "sac")
 # Keys of the YAML files that are not arguments of the SB3 constructor.
 RUN_KEYS: tuple[str, ...] = ("n_envs", "n_timesteps", "policy", "eval_freq", "n_eval_episodes",
@@ -476,9 +478,8 @@ def _build(plan: _Plan, verbose: int, eval_enabled: bool) -> tuple[Any, Any, Any
     except (TypeError, ValueError) as exc:  # the env's own check of env_kwargs
         for e in envs:
             e.close()
-        msg = _first_line(exc).split(" was raised from the environment creator")[0]
         raise TrainError(f"bad hyperparameter env_kwargs={_short(plan.env_kwargs)}: "
-                         f"{msg}") from None
+                         f"{env_error_line(exc)}") from None
     env, eval_env = envs[0], (envs[1] if len(envs) > 1 else None)
 
     cls = {"ppo": PPO, "sac": SAC}[plan.algo]
