@@ -1,0 +1,340 @@
+"""Validation harness: the estimators against the truth over the documented food space.
+
+Draws foods from a seeded space-filling design (``fetch_env.food_space``), runs the probes
+and estimators on each (``fetch_env.probes.run_probes``), and holds every estimate to the
+truth (``fetch_env.probes.true_parameters_exact``: g1, tau1 and mu the material's, K1, K2, B
+from the elastic twin).  Writes, under ``--out``:
+
+* ``<name>.jsonl``: one record per food, appended and flushed as each finishes (a stopped run
+  keeps what finished; ``--resume`` skips the foods already there);
+* ``<name>.json``: the records and the summary (median, 95th percentile and max |error| of
+  K1, K2, B, g1, tau1, mu; 95 % interval coverage; reliability; failures; wall times);
+* ``<name>.csv``: one row per food;
+* ``<name>.md``: the summary table, and ``<name>_errors.png``: error against each parameter
+  (with matplotlib).
+
+    python benchmarks/validate_estimators.py --set reporting --n 64 --workers 2 \\
+        --out docs/data/validation
+
+Tune on ``--set tuning`` (seed ``TUNING_SEED``), report ``--set reporting``
+(``REPORTING_SEED``): the two designs share no food.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import sys
+import time
+from collections.abc import Iterable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from fetch_env.food_space import (
+    REPORTING_SEED,
+    STIFF_YOUNG_RANGE,
+    TUNING_SEED,
+    YOUNG_RANGE,
+    Food,
+    corner_foods,
+    sample_foods,
+)
+from fetch_env.probes import (
+    PARAM_NAMES,
+    PROBE_PRESETS,
+    run_probes,
+    true_parameters_exact,
+)
+
+SETS = ("tuning", "reporting", "corners", "stiff")
+
+
+def foods_of(name: str, n: int) -> list[Food]:
+    """The foods of a named set."""
+    if name == "tuning":
+        return sample_foods(n, TUNING_SEED)
+    if name == "reporting":
+        return sample_foods(n, REPORTING_SEED)
+    if name == "stiff":
+        return sample_foods(n, REPORTING_SEED + 1, young_range=STIFF_YOUNG_RANGE)
+    return corner_foods()[:n]
+
+
+def measure(food: Food, preset: str, noise: float, seed: int) -> dict[str, Any]:
+    """Probe one food and hold the estimates to the truth (never raises)."""
+    config = PROBE_PRESETS[preset]
+    piece = food.piece()
+    t0 = time.perf_counter()
+    try:
+        out = run_probes((piece,), config, noise=noise, seed=seed)
+        truth = true_parameters_exact(piece, config)
+    except Exception as exc:  # a harness keeps going; the record says what failed
+        return {"food": food.to_dict(), "crash": f"{type(exc).__name__}: {exc}"}
+    rec: dict[str, Any] = {
+        "food": food.to_dict(),
+        "truth": truth,
+        "estimate": out.estimates,
+        "interval": {k: list(v) for k, v in out.intervals.items()},
+        "visco_valid": out.visco_valid,
+        "friction_valid": out.friction_valid,
+        "reliable": out.reliable,
+        "warnings": out.warnings,
+        "wall_probes": out.wall_time,
+        "wall_fits": out.details.get("wall_fits", math.nan),
+        "wall_total": time.perf_counter() - t0,
+    }
+    rec["error"] = {k: _rel(out.estimates[k], truth[k]) for k in PARAM_NAMES}
+    rec["covered"] = {k: _covers(out.intervals.get(k), truth[k]) for k in PARAM_NAMES}
+    return rec
+
+
+def _rel(est: float, true: float) -> float:
+    return float(est / true - 1.0) if math.isfinite(est) and true else math.nan
+
+
+def _covers(iv: Iterable[float] | None, true: float) -> bool | None:
+    if iv is None:
+        return None
+    lo, hi = iv
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return None
+    return bool(lo <= true <= hi)
+
+
+def summarize(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """Accuracy, coverage and reliability over the records (soft foods only for the bars)."""
+    ok = [r for r in records if "crash" not in r]
+    out: dict[str, Any] = {"n_foods": len(records), "n_crashed": len(records) - len(ok)}
+    for k in PARAM_NAMES:
+        err = np.array([abs(r["error"][k]) for r in ok], dtype=float)
+        found = err[np.isfinite(err)]
+        cov = [r["covered"][k] for r in ok if r["covered"][k] is not None]
+        out[k] = {
+            "n": int(found.size),
+            "failed": int(err.size - found.size),
+            "median": float(np.median(found)) if found.size else math.nan,
+            "p95": float(np.percentile(found, 95)) if found.size else math.nan,
+            "max": float(found.max()) if found.size else math.nan,
+            "coverage": float(np.mean(cov)) if cov else math.nan,
+            "n_intervals": len(cov),
+        }
+    out["reliability"] = _reliability(ok)
+    walls = [r["wall_probes"] for r in ok]
+    fits = [r["wall_fits"] for r in ok if math.isfinite(r["wall_fits"])]
+    out["wall_probes_median"] = float(np.median(walls)) if walls else math.nan
+    out["wall_probes_max"] = float(np.max(walls)) if walls else math.nan
+    out["wall_fits_median"] = float(np.median(fits)) if fits else math.nan
+    out["wall_fits_max"] = float(np.max(fits)) if fits else math.nan
+    return out
+
+
+def _reliability(ok: list[dict[str, Any]]) -> dict[str, Any]:
+    """How the ``reliable`` flag sorts the foods by their worst g1 / tau1 / mu error."""
+    def worst(r: dict[str, Any]) -> float:
+        errs = [abs(r["error"][k]) for k in ("g1", "tau1", "mu")]
+        return max(errs) if all(math.isfinite(e) for e in errs) else math.inf
+    bad = [r for r in ok if worst(r) > 0.05]
+    good = [r for r in ok if worst(r) < 0.02]
+    return {
+        "n_over_5pct": len(bad),
+        "over_5pct_flagged_reliable": sum(bool(r["reliable"]) for r in bad),
+        "n_under_2pct": len(good),
+        "under_2pct_flagged_unreliable": sum(not r["reliable"] for r in good),
+    }
+
+
+def table(summary: dict[str, Any], title: str) -> str:
+    """The summary as a markdown table."""
+    lines = [f"**{title}**", "",
+             "| parameter | foods | failed | median abs error | 95th pct | max | 95 % interval "
+             "coverage |", "|---|---|---|---|---|---|---|"]
+    for k in PARAM_NAMES:
+        s = summary[k]
+        cov = f"{100 * s['coverage']:.0f} % of {s['n_intervals']}" if s["n_intervals"] else "-"
+        lines.append(f"| {k} | {s['n']} | {s['failed']} | {100 * s['median']:.2f} % | "
+                     f"{100 * s['p95']:.2f} % | {100 * s['max']:.2f} % | {cov} |")
+    rel = summary["reliability"]
+    lines += ["", f"reliable flag: {rel['over_5pct_flagged_reliable']} of {rel['n_over_5pct']} "
+              "foods with an error over 5 % flagged reliable; "
+              f"{rel['under_2pct_flagged_unreliable']} of {rel['n_under_2pct']} with every "
+              "error under 2 % flagged unreliable.",
+              f"probes: median {summary['wall_probes_median']:.2f} s, max "
+              f"{summary['wall_probes_max']:.2f} s a food; fits: median "
+              f"{1e3 * summary['wall_fits_median']:.1f} ms, max "
+              f"{1e3 * summary['wall_fits_max']:.1f} ms (one core each)."]
+    return "\n".join(lines) + "\n"
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def write_outputs(out: Path, name: str, records: list[dict[str, Any]], meta: dict[str, Any]
+                  ) -> dict[str, Any]:
+    """JSON, CSV, markdown (and a figure) of the finished records."""
+    records = sorted(records, key=lambda r: r["food"]["index"])
+    summary = summarize(records)
+    _write_atomic(out / f"{name}.json", json.dumps(
+        {"meta": meta, "summary": summary, "records": records}, indent=1, default=float))
+    fields = list(records[0]["food"]) if records else []
+    rows = [",".join([*fields, *(f"true_{k}" for k in PARAM_NAMES),
+                      *(f"est_{k}" for k in PARAM_NAMES), *(f"err_{k}" for k in PARAM_NAMES),
+                      "reliable", "crash"])]
+    for r in records:
+        vals = [r["food"][f] for f in fields]
+        for part in ("truth", "estimate", "error"):
+            vals += [r.get(part, {}).get(k, math.nan) for k in PARAM_NAMES]
+        vals += [r.get("reliable", ""), r.get("crash", "")]
+        rows.append(",".join(_csv_cell(v) for v in vals))
+    _write_atomic(out / f"{name}.csv", "\n".join(rows) + "\n")
+    title = (f"{meta['set']} set ({meta['n']} foods, seed {meta['seed']}), probes "
+             f"'{meta['preset']}', noise {meta['noise']:g}")
+    _write_atomic(out / f"{name}.md", table(summary, title))
+    _figure(out / f"{name}_errors.png", records)
+    return summary
+
+
+def _csv_cell(v: Any) -> str:
+    s = f"{v:.6g}" if isinstance(v, float) else str(v)
+    return '"' + s.replace('"', "'") + '"' if ("," in s or '"' in s) else s
+
+
+def _figure(path: Path, records: list[dict[str, Any]]) -> None:
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return
+    ok = [r for r in records if "crash" not in r]
+    xs = ("size", "young", "g1", "tau1", "mu")
+    fig, axes = plt.subplots(3, len(xs), figsize=(3 * len(xs), 8), sharey="row")
+    for row, k in enumerate(("g1", "tau1", "mu")):
+        for col, x in enumerate(xs):
+            ax = axes[row, col]
+            for shape, mark in (("cube", "s"), ("ellipsoid", "o"), ("sphere", "^")):
+                sel = [r for r in ok if r["food"]["shape"] == shape]
+                ax.plot([r["food"][x] for r in sel], [100 * r["error"][k] for r in sel], mark,
+                        ms=4, label=shape, alpha=0.7)
+            ax.axhline(0, color="k", lw=0.5)
+            if x in ("young", "tau1"):
+                ax.set_xscale("log")
+            if row == 2:
+                ax.set_xlabel(x)
+            if col == 0:
+                ax.set_ylabel(f"{k} error [%]")
+    axes[0, 0].legend(fontsize=7)
+    fig.tight_layout()
+    tmp = path.with_name(path.name + ".tmp.png")
+    fig.savefig(tmp, dpi=80)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def calibrate(records: list[dict[str, Any]], sd_now: dict[str, float],
+              coverage: float = 0.95) -> dict[str, float]:
+    """The systematic log-sd per parameter that makes the 95 % intervals cover the truth on
+    ``coverage`` of ``records``: for each food the least sd (in quadrature with what its own
+    interval holds, less the systematic part ``sd_now`` it was run with), then that
+    quantile over the foods."""
+    out = {}
+    for k in PARAM_NAMES:
+        need = []
+        for r in records:
+            if "crash" in r or not math.isfinite(r["error"][k]):
+                continue
+            lo, hi = r["interval"].get(k, (math.nan, math.nan))
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo > 0):
+                continue
+            sd_total = math.log(hi / lo) / (2 * 1.959963984540054)
+            sd_own = math.sqrt(max(sd_total**2 - sd_now.get(k, 0.0) ** 2, 0.0))
+            miss = abs(math.log1p(r["error"][k])) / 1.959963984540054
+            need.append(math.sqrt(max(miss**2 - sd_own**2, 0.0)))
+        out[k] = float(np.quantile(need, coverage)) if need else math.nan
+    return out
+
+
+def _done_indices(jsonl: Path) -> dict[int, dict[str, Any]]:
+    if not jsonl.exists():
+        return {}
+    done = {}
+    for line in jsonl.read_text().splitlines():
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            continue  # a line cut short by a stopped run: that food runs again
+        done[int(rec["food"]["index"])] = rec
+    return done
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--set", choices=SETS, default="tuning")
+    p.add_argument("--n", type=int, default=64, help="foods in the design (default 64)")
+    p.add_argument("--preset", choices=sorted(PROBE_PRESETS), default="measure")
+    p.add_argument("--noise", type=float, default=0.0,
+                   help="sensor noise, sd as a share of each trace's peak (default 0)")
+    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--out", type=Path, default=Path("docs/data/validation"))
+    p.add_argument("--name", default=None, help="file stem (default: set_preset_noise)")
+    p.add_argument("--resume", action="store_true", help="skip foods already in the .jsonl")
+    p.add_argument("--calibrate", type=Path, default=None, metavar="JSON",
+                   help="print the systematic sds that give 95 %% coverage on a finished "
+                   "run's records (a tuning run) and exit")
+    args = p.parse_args(argv)
+    if args.calibrate is not None:
+        data = json.loads(args.calibrate.read_text())
+        used = data["meta"].get("systematic_sd", dict.fromkeys(PARAM_NAMES, 0.0))
+        print(json.dumps(calibrate(data["records"], used), indent=1))
+        return 0
+    if not 1 <= args.n <= 4096 or not 0 <= args.noise <= 0.5 or args.workers < 1:
+        p.error("--n in [1, 4096], --noise in [0, 0.5], --workers >= 1")
+    name = args.name or f"{args.set}_{args.preset}_noise{args.noise:g}"
+    args.out.mkdir(parents=True, exist_ok=True)
+    jsonl = args.out / f"{name}.jsonl"
+    done = _done_indices(jsonl) if args.resume else {}
+    if not args.resume and jsonl.exists():
+        jsonl.unlink()
+    foods = [f for f in foods_of(args.set, args.n) if f.index not in done]
+    seed = {"tuning": TUNING_SEED, "reporting": REPORTING_SEED,
+            "stiff": REPORTING_SEED + 1, "corners": 0}[args.set]
+    meta = {"set": args.set, "n": args.n, "seed": seed, "preset": args.preset,
+            "noise": args.noise, "young_range": list(STIFF_YOUNG_RANGE if args.set == "stiff"
+                                                      else YOUNG_RANGE),
+            "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
+            "cpus": os.cpu_count(), "python": platform.python_version(),
+            "systematic_sd": dict(PROBE_SYSTEMATIC_SD),
+            "command": "python benchmarks/validate_estimators.py " + " ".join(argv or sys.argv[1:])}
+    records = list(done.values())
+    t0 = time.perf_counter()
+    with jsonl.open("a") as log, ProcessPoolExecutor(args.workers) as pool:
+        futures = [pool.submit(measure, f, args.preset, args.noise, 7919 * f.index + 1)
+                   for f in foods]
+        for i, fut in enumerate(as_completed(futures), 1):
+            rec = fut.result()
+            records.append(rec)
+            log.write(json.dumps(rec, default=float) + "\n")
+            log.flush()
+            e = rec.get("error", {})
+            print(f"[{i}/{len(foods)}] food {rec['food']['index']} {rec['food']['shape']} "
+                  + (rec["crash"] if "crash" in rec else " ".join(
+                      f"{k} {100 * e[k]:+.2f}%" for k in ("g1", "tau1", "mu", "K1"))),
+                  flush=True)
+    meta["wall_s"] = time.perf_counter() - t0
+    summary = write_outputs(args.out, name, records, meta)
+    print(table(summary, name))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,153 @@
+"""Intervals that include model error, not only sensor noise.
+
+A least-squares covariance ``s^2 (J^T J)^-1`` says how much white noise moves a fit.  A
+simulated or real clamp adds errors the model does not have: contact events that step the
+moment, a piece still settling into the clamp, a slow drift.  They show up as residuals that
+are correlated in time and as estimates that move when the window of the fit moves.  The
+intervals here add both:
+
+* the noise part, from the Jacobian, inflated by the residuals' lag-1 autocorrelation
+  ``rho`` (an effective sample size ``n (1 - rho) / (1 + rho)``);
+* the model part, the largest change of each estimate when the hold window starts later or
+  ends earlier (:data:`WINDOW_SHIFTS`): a pure exponential gives the same answer on every
+  window, a distorted one does not.
+
+Their root-sum-square, times :data:`INTERVAL_SCALE`, and a method's validated systematic
+uncertainty (``systematic``, what a validation against foods of known parameters showed it
+misses by beyond what its own trace reveals, as a metrologist's type B uncertainty) in
+quadrature, is the standard deviation of the log of each estimate; the 95 % interval is
+``exp(+-1.96 sd)`` around it.  The simulator's probes take theirs from the validation
+harness's tuning foods (``fetch_env.probes.PROBE_SYSTEMATIC_SD``) and report the coverage it
+gives on the reporting foods.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from estimators.errors import EstimationError
+from estimators.relaxation import HoldEstimate, estimate_from_hold
+from estimators.sls import ClampGeometry
+
+__all__ = ["INTERVAL_SCALE", "WINDOW_SHIFTS", "HoldWithIntervals", "hold_with_intervals",
+           "log_interval"]
+
+Z95 = 1.959963984540054
+INTERVAL_SCALE = 1.0
+# (share of the hold span dropped at the start, share dropped at the end)
+WINDOW_SHIFTS: tuple[tuple[float, float], ...] = ((0.15, 0.0), (0.0, 0.3))
+_NAMES = ("K1", "K2", "B", "g1", "tau1")
+
+
+@dataclass
+class HoldWithIntervals:
+    """A hold estimate with 95 % intervals and the parts of its uncertainty.
+
+    Attributes:
+        estimate: the estimate on the full hold window.
+        intervals: name -> (low, high), 95 %.
+        sd_noise, sd_model: name -> standard deviation of the log estimate from noise and
+            from the window shifts.
+        alternates: the estimates on the shifted windows (those that gave one).
+    """
+
+    estimate: HoldEstimate
+    intervals: dict[str, tuple[float, float]]
+    sd_noise: dict[str, float]
+    sd_model: dict[str, float]
+    alternates: list[HoldEstimate] = field(default_factory=list)
+
+
+def log_interval(value: float, sd_log: float, z: float = Z95) -> tuple[float, float]:
+    """``value * exp(+-z sd_log)`` (a positive quantity's interval on the log scale)."""
+    if not (math.isfinite(value) and value > 0 and math.isfinite(sd_log)):
+        return (math.nan, math.nan)
+    return (value * math.exp(-z * sd_log), value * math.exp(z * sd_log))
+
+
+def _lag1(r: np.ndarray) -> float:
+    if r.size < 4:
+        return 0.0
+    r = r - r.mean()
+    den = float(r @ r)
+    return float(np.clip((r[1:] @ r[:-1]) / den, 0.0, 0.95)) if den > 0 else 0.0
+
+
+def _noise_sd(est: HoldEstimate, t: np.ndarray, m: np.ndarray, t_start: float) -> dict[str, float]:
+    """Log-sd of each estimate from the hold fit's covariance, autocorrelation-inflated."""
+    hf = est.fit
+    sel = t > t_start
+    s, y = t[sel] - t_start, m[sel]
+    resid = y - (hf.M_inf + hf.A * np.exp(-hf.lam * s))
+    rho = _lag1(resid)
+    inflate = math.sqrt((1 + rho) / (1 - rho))
+    cov = np.asarray(hf.cov) * inflate**2
+    if not np.all(np.isfinite(cov)):
+        return dict.fromkeys(_NAMES, math.inf)
+    m_d = hf.M_inf + hf.A
+    rel_minf = math.sqrt(max(cov[0, 0], 0.0)) / abs(hf.M_inf) if hf.M_inf else math.inf
+    rel_a = math.sqrt(max(cov[1, 1], 0.0)) / abs(hf.A) if hf.A else math.inf
+    rel_lam = math.sqrt(max(cov[2, 2], 0.0)) / hf.lam if hf.lam > 0 else math.inf
+    # g1 ~ A / M(t_d): d log g1 = (1 - g1) (d log A - d log M_inf) to first order
+    rel_g1 = (1 - min(est.g1, 0.999)) * math.hypot(rel_a, rel_minf) if m_d else math.inf
+    return {"K1": rel_minf, "K2": math.hypot(rel_a, rel_lam), "B": math.hypot(rel_a, rel_lam),
+            "g1": rel_g1, "tau1": rel_lam}
+
+
+def hold_with_intervals(
+    t: ArrayLike,
+    M: ArrayLike,
+    geometry: ClampGeometry,
+    theta_1: float,
+    theta_d: float,
+    omega: float,
+    t_d: float,
+    settle: float = 0.0,
+    scale: float = INTERVAL_SCALE,
+    systematic: dict[str, float] | None = None,
+) -> HoldWithIntervals:
+    """:func:`estimators.estimate_from_hold` with 95 % intervals that include model error.
+
+    Args: as :func:`estimators.estimate_from_hold`; ``scale`` multiplies the noise and the
+    window parts of the standard deviation (see the module docstring); ``systematic`` gives,
+    by name, a validated systematic log-sd of the measurement method (a type B uncertainty:
+    what a validation against known foods showed the method misses by beyond what the trace
+    itself reveals), added in quadrature.
+
+    Raises:
+        EstimationError: as :func:`estimators.estimate_from_hold` on the full window.
+    """
+    if not (math.isfinite(scale) and scale > 0):
+        raise EstimationError(f"scale must be finite and > 0, got {scale!r}")
+    tt = np.asarray(t, dtype=np.float64)
+    mm = np.asarray(M, dtype=np.float64)
+    args = (geometry, theta_1, theta_d, omega, t_d)
+    est = estimate_from_hold(tt, mm, *args, settle=settle)
+    span = float(tt[-1]) - (t_d + settle)
+    alternates = []
+    for head, tail in WINDOW_SHIFTS:
+        keep = tt <= tt[-1] - tail * span + 1e-12
+        try:
+            alternates.append(estimate_from_hold(tt[keep], mm[keep], *args,
+                                                 settle=settle + head * span))
+        except (EstimationError, ArithmeticError):
+            continue  # a window too short to fit says nothing either way
+    noise = _noise_sd(est, tt, mm, t_d + settle)
+    model = {}
+    for k in _NAMES:
+        v0 = getattr(est, k)
+        shifts = [abs(math.log(getattr(a, k) / v0)) for a in alternates
+                  if getattr(a, k) > 0 and math.isfinite(getattr(a, k)) and v0 > 0]
+        model[k] = max(shifts) if shifts else (math.inf if len(alternates) < 1 else 0.0)
+    floor = systematic or {}
+    for k, v in floor.items():
+        if k not in _NAMES or not (math.isfinite(v) and v >= 0):
+            raise EstimationError(f"systematic[{k!r}] must name one of {_NAMES} with a finite "
+                                  f"sd >= 0, got {v!r}")
+    intervals = {k: log_interval(getattr(est, k), math.hypot(
+        scale * math.hypot(noise[k], model[k]), floor.get(k, 0.0))) for k in _NAMES}
+    return HoldWithIntervals(est, intervals, noise, model, alternates)
