@@ -50,6 +50,7 @@ from fetch_env.food_space import (
 from fetch_env.probes import (
     PARAM_NAMES,
     PROBE_PRESETS,
+    PROBE_SYSTEMATIC_SD,
     run_probes,
     true_parameters_exact,
 )

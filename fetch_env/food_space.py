@@ -130,7 +130,7 @@ def sample_foods(n: int, seed: int, young_range: tuple[float, float] = YOUNG_RAN
     ranges = dict(RANGES)
     ranges["young"] = (lo, hi, True)
     sampler = qmc.Sobol(d=1 + len(ranges), scramble=True, rng=np.random.default_rng(seed))
-    m = max(int(math.ceil(math.log2(n))), 0)
+    m = max(math.ceil(math.log2(n)), 0)
     u = sampler.random_base2(m)[:n]
     foods = []
     for i, row in enumerate(u):
