@@ -404,6 +404,10 @@ def print_report(r: ProbeEstimate) -> None:
 
 
 def cmd_estimate(args: argparse.Namespace) -> int:
+    if any(getattr(args, k, None) is not None for k in ("traces", "L", "theta_0")):
+        from agents.cmd_estimate_traces import cmd_estimate_traces  # recorded, not simulated
+
+        return cmd_estimate_traces(args)
     result = run_estimate(args)
     print_report(result)
     if args.json is not None:
@@ -482,4 +486,7 @@ def register(sub: Any) -> None:
         metavar="FILE",
         help="write true, estimate, error, interval, r2_clamp, r2_hold as JSON",
     )
+    from agents.cmd_estimate_traces import add_traces_options
+
+    add_traces_options(p)  # --traces FILE [--L] [--theta-0]; last: it marks the options above
     p.set_defaults(func=cmd_estimate)

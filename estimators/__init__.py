@@ -26,18 +26,22 @@ from estimators.relaxation import (
     estimate_three_step,
 )
 from estimators.sls import ClampGeometry, SLSParams, moment_trace, steady_moment
+from estimators.trace_files import RecordedTraces, TraceFileError, load_traces
 
 __all__ = [
     "ClampGeometry",
     "EstimationError",
     "FrictionEstimate",
     "HoldEstimate",
+    "RecordedTraces",
     "SLSParams",
+    "TraceFileError",
     "ViscoelasticEstimate",
     "estimate_friction",
     "estimate_from_hold",
     "estimate_full_fit",
     "estimate_three_step",
+    "load_traces",
     "moment_trace",
     "steady_moment",
 ]

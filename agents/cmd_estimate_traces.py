@@ -1,0 +1,209 @@
+"""``food-fetch estimate --traces FILE``: the estimators on recorded sensor traces.
+
+A real robot's log (CSV) or ``simulate --json`` output (schema: ``docs/traces_format.md``) is
+read by :func:`estimators.load_traces` and estimated by :func:`estimate_recorded`, which calls
+the estimators exactly as the simulated probes of ``food-fetch estimate`` do (the full fit with
+the same clamp weight, or the three-step method; :func:`estimators.estimate_friction`), so
+switching to better estimators is one edit there.  The report and ``--json`` have the simulated
+path's shape, with every true value unknown ('-' / null).
+
+The simulation's options (food, clamp, noise, seed, ...) are refused with ``--traces``: a
+recorded run is what it is, and accepting them silently would suggest they changed something.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from agents.cli_common import UsageError, finite, write_json
+from agents.cmd_estimate import NAMES, SIM_CLAMP_WEIGHT, ProbeEstimate, print_report
+from estimators import (
+    EstimationError,
+    FrictionEstimate,
+    RecordedTraces,
+    TraceFileError,
+    ViscoelasticEstimate,
+    estimate_friction,
+    estimate_full_fit,
+    estimate_three_step,
+    load_traces,
+)
+
+# Options of ``estimate`` that keep their meaning with --traces (argparse dests).
+TRACE_OPTIONS = frozenset({"traces", "L", "theta_0", "probe", "method", "json"})
+PROG = "food-fetch estimate"
+
+
+class _NoteGiven(argparse._StoreAction):
+    """A store action that also notes its option string in ``simulation_options``, so
+    ``--traces`` can refuse a simulation option even when given its default value."""
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: Any,
+        option_string: str | None = None,
+    ) -> None:
+        super().__call__(parser, namespace, values, option_string)
+        namespace.simulation_options = (*namespace.simulation_options, option_string)
+
+
+def add_traces_options(p: argparse.ArgumentParser) -> None:
+    """Add ``--traces``, ``--L``, ``--theta-0`` to ``estimate``'s parser ``p`` and mark every
+    option already there that only a simulation uses (call it after those are added)."""
+    for action in p._actions:
+        if type(action) is argparse._StoreAction and action.dest not in TRACE_OPTIONS:
+            action.__class__ = _NoteGiven
+    p.set_defaults(simulation_options=())
+    g = p.add_argument_group(
+        "recorded traces",
+        "estimate from a file instead of simulating (schema: docs/traces_format.md); "
+        "--probe both runs every probe the file has data for",
+    )
+    g.add_argument("--traces", default=None, metavar="FILE",
+                   help="recorded sensor traces: a CSV file or 'simulate --json' output")
+    g.add_argument("--L", type=finite(), default=None, metavar="M",
+                   help="lever arm L [m] from the hinge axis to the contact section "
+                   "(default: the file's)")
+    g.add_argument("--theta-0", type=finite(), default=None, metavar="RAD",
+                   help="hinge angle theta_0 [rad] at which the contact face is vertical "
+                   "(default: the file's)")
+
+
+@dataclass
+class RecordedEstimates:
+    """What :func:`estimate_recorded` got: each probe's estimate, or why it failed."""
+
+    relaxation: ViscoelasticEstimate | None = None
+    friction: FrictionEstimate | None = None
+    failures: dict[str, str] = field(default_factory=dict)
+    fit_time: float = math.nan
+
+
+def probes_to_run(traces: RecordedTraces, probe: str) -> tuple[str, ...]:
+    """The probes ``probe`` asks for: ``"both"`` is every probe the file has data for.
+
+    Raises:
+        ValueError: an unknown probe name.
+        TraceFileError: a named probe the file has no data for.
+    """
+    if probe not in ("both", "relaxation", "slip"):
+        raise ValueError(f"probe must be 'both', 'relaxation' or 'slip', got {probe!r}")
+    if probe == "both":
+        return traces.probes
+    if probe not in traces.probes:
+        has = " and ".join(traces.probes)
+        raise TraceFileError(traces.path, f"no {probe} data (the file has {has} data)")
+    return (probe,)
+
+
+def estimate_recorded(
+    traces: RecordedTraces, *, method: str = "full", probe: str = "both"
+) -> RecordedEstimates:
+    """Run the estimators on recorded traces as the simulated probes run them (the full fit
+    with the simulator's clamp weight, or the three-step method; the friction estimator): the
+    one place that picks them.  An estimator's failure is kept in ``failures``, not raised.
+
+    Raises:
+        ValueError: an unknown method or probe name.
+        TraceFileError: ``probe`` names a probe the file has no data for.
+    """
+    if method not in ("full", "three-step"):
+        raise ValueError(f"method must be 'full' or 'three-step', got {method!r}")
+    run = probes_to_run(traces, probe)
+    out = RecordedEstimates()
+    caught = (EstimationError, ArithmeticError, np.linalg.LinAlgError)
+    if "relaxation" in run:
+        t, theta, m, geometry = traces.relaxation_inputs()
+        t0 = time.perf_counter()
+        try:
+            if method == "full":
+                out.relaxation = estimate_full_fit(
+                    t, theta, m, geometry, clamp_weight=SIM_CLAMP_WEIGHT)
+            else:
+                out.relaxation = estimate_three_step(t, theta, m, geometry)
+        except caught as exc:
+            out.failures["relaxation"] = f"{type(exc).__name__}: {exc}"
+        out.fit_time = time.perf_counter() - t0
+    if "slip" in run:
+        try:
+            out.friction = estimate_friction(*traces.slip_inputs(),
+                                             slide_start=traces.slide_start)
+        except caught as exc:
+            out.failures["slip"] = f"{type(exc).__name__}: {exc}"
+    return out
+
+
+def to_probe_estimate(traces: RecordedTraces, got: RecordedEstimates) -> ProbeEstimate:
+    """The report of ``estimate`` (true values unknown: NaN) from :func:`estimate_recorded`."""
+    out = ProbeEstimate(true=dict.fromkeys(NAMES, math.nan),
+                        estimate=dict.fromkeys(NAMES, math.nan), interval={})
+    for probe, error in got.failures.items():
+        out.reliable = False
+        out.warnings.append(f"{probe} probe: {error}")
+    est = got.relaxation
+    if est is not None:
+        out.estimate.update(K1=est.K1, K2=est.K2, B=est.B, g1=est.g1, tau1=est.tau1)
+        out.interval.update({k: v for k, v in est.intervals.items() if k in NAMES})
+        out.r2_clamp, out.r2_hold = est.r2_clamp, est.r2_hold
+        out.reliable &= est.reliable
+        out.warnings += [f"relaxation probe: {w}" for w in est.warnings]
+        out.details["relaxation"] = {
+            "theta_1": est.theta_1, "M_peak": est.M_peak, "M_inf": est.M_inf,
+            "fit_time": got.fit_time, "method": est.method,
+            "n_samples": int(traces.relaxation_inputs()[0].size),
+        }
+    fe = got.friction
+    if fe is not None:
+        out.estimate["mu"] = fe.mu
+        out.interval["mu"] = fe.interval
+        out.reliable &= fe.reliable
+        out.warnings += [f"slip probe: {w}" for w in fe.warnings]
+        out.details["slip"] = {"window": list(fe.window), "mu_left": fe.mu_left,
+                               "mu_right": fe.mu_right, "n_samples": fe.n_samples}
+    return out
+
+
+def check_trace_options(args: argparse.Namespace) -> None:
+    """Refuse ``--L``/``--theta-0`` without ``--traces`` and simulation options with it."""
+    if args.traces is None:
+        given = [o for o, v in (("--L", args.L), ("--theta-0", args.theta_0)) if v is not None]
+        raise UsageError(f"{PROG}: {' and '.join(given)} need --traces FILE (a simulated "
+                         "run knows its geometry)")
+    given = list(dict.fromkeys(args.simulation_options))
+    if given:
+        raise UsageError(f"{PROG}: {', '.join(given)} cannot be used with --traces (they set "
+                         "the simulated run; a recorded one is estimated as it is)")
+
+
+def cmd_estimate_traces(args: argparse.Namespace) -> int:
+    """``food-fetch estimate --traces FILE``: load, estimate, report (and ``--json``)."""
+    check_trace_options(args)
+    try:
+        traces = load_traces(args.traces, L=args.L, theta_0=args.theta_0)
+        got = estimate_recorded(traces, method=args.method, probe=args.probe)
+    except TraceFileError as exc:
+        raise UsageError(f"{PROG}: {exc}") from None
+    result = to_probe_estimate(traces, got)
+    result.details["settings"] = {
+        "traces": traces.path, "method": args.method, "probe": args.probe,
+        "clamp_weight": SIM_CLAMP_WEIGHT, "n_samples": int(traces.t.size),
+        "source": dict(traces.source),
+    }
+    geom = traces.geometry
+    geometry = (f"L {geom.L:g} m ({traces.source['L']}), theta_0 {geom.theta_0:g} rad "
+                f"({traces.source['theta_0']})" if geom is not None else "no geometry")
+    print(f"recorded traces {traces.path}: {traces.t.size} samples, "
+          f"{' and '.join(probes_to_run(traces, args.probe))} data; {geometry}")
+    print_report(result)
+    if args.json is not None:
+        write_json(args.json, result.to_dict())
+        print(f"wrote {args.json}")
+    return 0

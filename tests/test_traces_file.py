@@ -1,0 +1,341 @@
+"""``food-fetch estimate --traces FILE`` and :func:`estimators.load_traces`: recorded traces
+(CSV, or ``simulate --json`` output) give exactly what the estimators give on the same traces,
+and every kind of bad file is one typed error / one line on stderr with exit code 2."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from agents.cmd_estimate import NAMES, SIM_CLAMP_WEIGHT, relaxation_traces
+from agents.cmd_estimate_traces import estimate_recorded
+from estimators import (
+    ClampGeometry,
+    EstimationError,
+    SLSParams,
+    TraceFileError,
+    estimate_friction,
+    estimate_full_fit,
+    estimate_three_step,
+    load_traces,
+    moment_trace,
+)
+from estimators.sls import clamp_angle
+from estimators.trace_files import MIN_SAMPLES, PHASES
+from tests.cli_helpers import assert_one_line_error, run_cli
+
+RELAX_KEYS = ("K1", "K2", "B", "g1", "tau1")
+FORCES = ("normal_left", "tangential_left", "normal_right", "tangential_right")
+
+
+# ------------------------------------------------------------------------------- helpers
+
+def write_csv(path: Path, columns: dict[str, Any], meta: dict[str, float] | None = None) -> Path:
+    """A traces CSV: ``# key: value`` lines, a header, rows of exactly round-tripping floats."""
+    lines = [f"# {k}: {v!r}" for k, v in (meta or {}).items()]
+    lines.append(",".join(columns))
+    values = [np.asarray(v, dtype=np.float64) for v in columns.values()]
+    lines += [",".join(repr(float(v[i])) for v in values) for i in range(values[0].size)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def estimate_json(path: Path, capsys: pytest.CaptureFixture[str], *extra: str) -> dict[str, Any]:
+    """``food-fetch estimate --traces PATH --json`` in this process: the JSON written."""
+    out = path.with_name(path.name + ".estimate.json")
+    code, stdout, err = run_cli(["estimate", "--traces", str(path), "--json", str(out), *extra],
+                                capsys)
+    assert code == 0, err
+    assert "Traceback" not in err
+    assert stdout.splitlines()[0].startswith(f"recorded traces {path}")
+    return json.loads(out.read_text())
+
+
+def sim_relaxation(doc: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
+    """``(t, theta, M, geometry)`` as the simulated ``estimate`` path builds them."""
+    result = SimpleNamespace(traces={k: np.asarray(v) for k, v in doc["traces"].items()},
+                             extra=doc["extra"], geometry=doc["geometry"])
+    return relaxation_traces(result)
+
+
+def synthetic_relaxation(n: int = 400, uniform: bool = True) -> dict[str, np.ndarray]:
+    """An exact SLS clamp-and-hold (0.5 s at rest, then 0.02 rad/s to 0.024 rad, hold)."""
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 8.0, n) if uniform else np.sort(rng.uniform(0.0, 8.0, n))
+    geom = ClampGeometry(L=0.04, theta_0=0.0)
+    m = moment_trace(t, SLSParams(4000.0, 2000.0, 6000.0), geom, 0.005, 0.024, 0.02, 0.5)
+    return {"t": t, "theta": clamp_angle(t, 0.024, 0.02, 0.5), "moment_left": m,
+            "moment_right": m.copy()}
+
+
+# -------------------------------------------------------------------------- round trips
+
+@pytest.fixture(scope="module")
+def sim_docs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """One short relaxation and one slip run written by ``simulate --json``."""
+    from agents.cli import main
+
+    tmp = tmp_path_factory.mktemp("sim")
+    out = {}
+    for experiment, extra in (("relaxation", ["--hold", "2"]), ("slip", [])):
+        out[experiment] = tmp / f"{experiment}.json"
+        assert main(["simulate", "--experiment", experiment, "--json",
+                     str(out[experiment]), *extra]) == 0
+    return out
+
+
+@pytest.mark.parametrize("method", ["full", "three-step"])
+def test_relaxation_round_trip_json_and_csv(
+    sim_docs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], method: str
+) -> None:
+    doc = json.loads(sim_docs["relaxation"].read_text())
+    t, theta, m, geom = sim_relaxation(doc)
+    if method == "full":
+        direct = estimate_full_fit(t, theta, m, geom, clamp_weight=SIM_CLAMP_WEIGHT)
+    else:
+        direct = estimate_three_step(t, theta, m, geom)
+    tr = doc["traces"]
+    csv_path = write_csv(
+        tmp_path / "relaxation.csv",
+        {k: tr[k] for k in ("t", "theta", "moment_left", "moment_right", "phase")},
+        {"L": doc["geometry"]["L"], "theta_0": doc["geometry"]["theta_0"],
+         "clamp_start": doc["extra"]["t_clamp_start"]},
+    )
+    for path in (sim_docs["relaxation"], csv_path):
+        r = estimate_json(path, capsys, "--method", method)
+        for k in RELAX_KEYS:
+            assert_allclose(r["estimate"][k], getattr(direct, k), rtol=1e-9, err_msg=k)
+        assert set(r["interval"]) == set(direct.intervals) & set(NAMES)
+        for k in r["interval"]:
+            assert_allclose(r["interval"][k], direct.intervals[k], rtol=1e-9, err_msg=k)
+        assert_allclose([r["r2_clamp"], r["r2_hold"]], [direct.r2_clamp, direct.r2_hold],
+                        rtol=1e-9)
+        assert r["estimate"]["mu"] is None  # a relaxation run has no slide
+        assert all(v is None for v in r["true"].values()) and set(r["true"]) == set(NAMES)
+        assert r["reliable"] == direct.reliable
+
+
+def test_slip_round_trip_json_and_csv(
+    sim_docs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    doc = json.loads(sim_docs["slip"].read_text())
+    tr = {k: np.asarray(v) for k, v in doc["traces"].items()}
+    slide_start = float(tr["t"][tr["phase"] == PHASES.index("slide")][0])
+    direct = estimate_friction(tr["t"], *(tr[k] for k in FORCES), slide_start=slide_start)
+    # no slide_start line: the CSV's phase column gives it, as the JSON's does
+    csv_path = write_csv(tmp_path / "slip.csv", {k: tr[k] for k in ("t", *FORCES, "phase")})
+    for path in (sim_docs["slip"], csv_path):
+        r = estimate_json(path, capsys)
+        assert_allclose(r["estimate"]["mu"], direct.mu, rtol=1e-9)
+        assert_allclose(r["interval"]["mu"], direct.interval, rtol=1e-9)
+        assert all(r["estimate"][k] is None for k in RELAX_KEYS)  # slip data only
+        assert r["details"]["slip"]["window"] == list(direct.window)
+        assert r["details"]["settings"]["source"]["slide_start"].startswith("first 'slide'")
+
+
+def test_report_shows_unknown_truth_as_dash(
+    sim_docs: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, err = run_cli(["estimate", "--traces", str(sim_docs["relaxation"])], capsys)
+    assert code == 0, err
+    rows = {line.split()[0]: line.split() for line in out.splitlines()[2:8]}
+    assert set(rows) == set(NAMES)
+    assert all(rows[k][1] == "-" and rows[k][3] == "-" for k in NAMES)  # true, error
+    assert rows["K1"][2] != "-" and rows["mu"][2] == "-"
+
+
+def test_estimate_recorded_is_the_estimators(sim_docs: dict[str, Path]) -> None:
+    """The Python path: load_traces + estimate_recorded, against the estimator calls."""
+    traces = load_traces(sim_docs["slip"])
+    assert traces.probes == ("slip",) and traces.clamp_start == 0.3
+    got = estimate_recorded(traces)
+    direct = estimate_friction(*traces.slip_inputs(), slide_start=traces.slide_start)
+    assert got.friction is not None and got.relaxation is None and not got.failures
+    assert got.friction.mu == direct.mu
+    with pytest.raises(TraceFileError, match="no relaxation data"):
+        estimate_recorded(traces, probe="relaxation")
+
+
+def test_real_robot_csv_non_uniform_geometry_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A log without metadata and with uneven sampling: geometry from the options, and the
+    exact SLS trace gives back its K1, K2, B."""
+    path = write_csv(tmp_path / "robot.csv", synthetic_relaxation(uniform=False))
+    traces = load_traces(path, L=0.04, theta_0=0.0)
+    assert traces.source["L"] == "given" and traces.clamp_start is None
+    assert not traces.t.flags.writeable
+    r = estimate_json(path, capsys, "--L", "0.04", "--theta-0", "0")
+    assert_allclose([r["estimate"][k] for k in ("K1", "K2", "B")], [4000.0, 2000.0, 6000.0],
+                    rtol=1e-3)
+
+
+def test_phase_codes_are_the_simulators() -> None:
+    from fetch_env.controller import PHASES as SIM_PHASES
+
+    assert tuple(SIM_PHASES) == PHASES
+
+
+def test_loader_imports_no_simulator() -> None:
+    code = ("import sys, estimators.trace_files; "
+            "bad = [m for m in sys.modules if m.split('.')[0] in ('mujoco', 'fetch_env', "
+            "'agents')]; assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+# ----------------------------------------------------------------------------- bad files
+
+def _good_csv() -> dict[str, np.ndarray]:
+    return synthetic_relaxation(n=30)
+
+
+def _csv_text(columns: dict[str, Any], meta: str = "# L: 0.04\n# theta_0: 0\n") -> str:
+    rows = zip(*(np.asarray(v) for v in columns.values()), strict=True)
+    body = "\n".join(",".join(repr(float(x)) for x in r) for r in rows)
+    return meta + ",".join(columns) + "\n" + body
+
+
+def _set_cell(text: str, line: int, column: int, value: str) -> str:
+    """``text`` with the cell at (1-based ``line``, 0-based ``column``) replaced by ``value``."""
+    lines = text.splitlines()
+    cells = lines[line - 1].split(",")
+    cells[column] = value
+    lines[line - 1] = ",".join(cells)
+    return "\n".join(lines)
+
+
+def _bad_files() -> dict[str, tuple[str, str | bytes, str]]:
+    """name -> (file name, contents, fragment the error must contain)."""
+    good = _good_csv()
+    text = _csv_text(good)  # lines 1-2 metadata, 3 the header t,theta,moment_left,moment_right
+    return {
+        "binary": ("x.csv", b"\x89PNG\r\n\x1a\n\x00\xff\xfe", "not a text file"),
+        "empty": ("x.csv", "\n  \n", "empty file"),
+        "prose": ("x.txt", "hello, this is not\njust words\n", "missing column 't'"),
+        "one-column": ("x.txt", "just some words\nand more\n", "not a CSV file"),
+        "bad-json": ("x.json", '{"traces": [1, 2', "not valid JSON"),
+        "json-no-traces": ("x.json", '{"t": [1, 2]}', "JSON without a 'traces' object"),
+        "json-fetch": ("x.json", json.dumps({"experiment": "fetch", "traces": {}}),
+                       "experiment 'fetch' has no probe data"),
+        "json-string": ("x.json", json.dumps({"traces": {"t": ["a"]}}),
+                        "traces.t[0]: 'a' is not a number"),
+        "no-time": ("x.csv", _csv_text({k: v for k, v in good.items() if k != "t"}),
+                    "missing column 't'"),
+        "no-theta": ("x.csv", _csv_text({k: v for k, v in good.items() if k != "theta"}),
+                     "missing column 'theta': the relaxation probe needs theta, moment_left, "
+                     "moment_right together"),
+        "half-spoon": ("x.csv", _csv_text({k: v for k, v in good.items()
+                                           if k != "moment_right"}),
+                       "one half-spoon missing: column 'moment_left' without 'moment_right'"),
+        "half-force": ("x.csv", _csv_text({"t": good["t"], "normal_left": good["t"],
+                                           "tangential_left": good["t"],
+                                           "tangential_right": good["t"]}),
+                       "column 'normal_left' without 'normal_right'"),
+        "no-probe": ("x.csv", _csv_text({"t": good["t"], "lift": good["t"]}),
+                     "no slip data (normal_left, normal_right, tangential_left, tangential_right)"
+                     "; columns found: t, lift"),
+        "non-numeric": ("x.csv", _set_cell(text, 6, 1, "abc"),
+                        "line 6, column 'theta': 'abc' is not a number"),
+        "empty-cell": ("x.csv", _set_cell(text, 7, 2, " "),
+                       "line 7, column 'moment_left': empty cell is not a number"),
+        "nan": ("x.csv", _set_cell(text, 9, 3, "nan"),
+                "column 'moment_right' has nan at line 9"),
+        "inf": ("x.csv", _set_cell(text, 10, 1, "-inf"), "column 'theta' has -inf at line 10"),
+        "time-back": ("x.csv", _set_cell(text, 12, 0, "0.0"),
+                      "time not strictly increasing at line 12"),
+        "too-short": ("x.csv", "\n".join(text.splitlines()[:3 + 12]),
+                      f"too short: 12 samples, at least {MIN_SAMPLES} are needed"),
+        "ragged": ("x.csv", _set_cell(text, 5, 0, "0.1,1"),
+                   "line 5 has 5 cells, the header has 4"),
+        "no-geometry": ("x.csv", _csv_text(good, meta=""),
+                        "clamp geometry missing: lever arm L [m]: --L"),
+        "no-theta-0": ("x.csv", _csv_text(good, meta="# L: 0.04\n"),
+                       "clamp geometry missing: theta_0 [rad]: --theta-0"),
+        "bad-metadata": ("x.csv", _csv_text(good, meta="# L: 4 cm\n# theta_0: 0\n"),
+                         "L (line 1): '4 cm' is not a number"),
+        "negative-L": ("x.csv", _csv_text(good, meta="# L: -0.04\n# theta_0: 0\n"),
+                       "clamp geometry: lever arm L must be finite and > 0 m"),
+        "late-clamp": ("x.csv", _csv_text(good, meta="# L: 0.04\n# theta_0: 0\n"
+                                          "# clamp_start: 99\n"),
+                       "clamp_start = 99.0 s is outside the recorded time"),
+    }
+
+
+BAD = _bad_files()
+
+
+@pytest.mark.parametrize("kind", list(BAD))
+def test_bad_file_is_one_line_exit_2(
+    kind: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    name, contents, fragment = BAD[kind]
+    path = tmp_path / name
+    if isinstance(contents, bytes):
+        path.write_bytes(contents)
+    else:
+        path.write_text(contents)
+    code, out, err = run_cli(["estimate", "--traces", str(path)], capsys)
+    assert_one_line_error(code, err)
+    assert str(path) in err and fragment in err, err
+    assert out == ""
+    with pytest.raises(TraceFileError) as info:  # the Python API: the typed error
+        load_traces(path)
+    assert fragment in str(info.value) and info.value.path == str(path)
+    assert isinstance(info.value, EstimationError) and isinstance(info.value, ValueError)
+
+
+@pytest.mark.parametrize(("args", "fragment"), [
+    (["--traces", "{missing}"], "cannot read: No such file or directory"),
+    (["--traces", "{dir}"], "cannot read"),
+    (["--traces", "{good}", "--probe", "slip"], "no slip data (the file has relaxation data)"),
+    (["--traces", "{good}", "--young", "2e5"], "--young cannot be used with --traces"),
+    (["--traces", "{good}", "--noise", "0", "--shape", "cube"],
+     "--noise, --shape cannot be used with --traces"),
+    (["--traces", "{good}", "--clamp-weight", "1"], "--clamp-weight cannot be used"),
+    (["--traces", "{good}", "--hold", "3"], "--hold cannot be used"),
+    (["--traces", "{good}", "--L", "abc"], "--L: not a number"),
+    (["--L", "0.04"], "--L need --traces FILE"),
+    (["--theta-0", "0", "--L", "0.04"], "--L and --theta-0 need --traces FILE"),
+], ids=lambda v: v if isinstance(v, str) else " ".join(v))
+def test_bad_option_is_one_line_exit_2(
+    args: list[str], fragment: str, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from fetch_env.controller import FetchSimulator
+
+    def refuse(*_a: object, **_k: object) -> None:
+        raise AssertionError("simulated with --traces or --L")
+
+    monkeypatch.setattr(FetchSimulator, "run", refuse)
+    good = tmp_path / "good.csv"
+    good.write_text(_csv_text(_good_csv()))
+    paths = {"{missing}": str(tmp_path / "nope.csv"), "{dir}": str(tmp_path),
+             "{good}": str(good)}
+    code, _, err = run_cli(["estimate", *(paths.get(a, a) for a in args)], capsys)
+    assert_one_line_error(code, err)
+    assert fragment in err, err
+
+
+def test_json_missing_geometry_uses_options(
+    sim_docs: dict[str, Path], tmp_path: Path
+) -> None:
+    """Geometry from the options beats the file's; without either, the error names it."""
+    doc = json.loads(sim_docs["relaxation"].read_text())
+    theta_0 = doc.pop("geometry")["theta_0"]
+    path = tmp_path / "nogeom.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(TraceFileError, match=r"clamp geometry missing: lever arm L .*theta_0"):
+        load_traces(path)
+    traces = load_traces(path, L=0.05, theta_0=0.01)
+    assert traces.geometry == ClampGeometry(L=0.05, theta_0=0.01)
+    assert traces.source["L"] == "given" and traces.source["clamp_start"].startswith("extra.")
+    traces = load_traces(sim_docs["relaxation"], L=0.05)
+    assert traces.geometry == ClampGeometry(L=0.05, theta_0=theta_0)
