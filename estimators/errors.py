@@ -24,9 +24,22 @@ def as_trace(name: str, values: ArrayLike) -> NDArray[np.float64]:
         values: the samples.
 
     Raises:
-        EstimationError: if the trace is not 1-D or holds NaN/inf samples.
+        EstimationError: if the trace is not numbers (strings, objects, complex: numpy would
+            raise a bare ``ValueError``/``TypeError`` or drop the imaginary part with only a
+            warning), is not 1-D or holds NaN/inf samples.
     """
-    arr = np.asarray(values, dtype=np.float64)
+    try:
+        raw = np.asarray(values)
+        # numbers, or objects that are numbers (e.g. a list mixing ints and floats); never
+        # text, which numpy would parse, nor complex
+        ok = raw.dtype.kind in "biufO"
+        arr = raw.astype(np.float64) if ok else raw
+    except (TypeError, ValueError):  # ragged nested sequences
+        ok = False
+    if not ok:
+        shown = repr(values)
+        shown = shown if len(shown) <= 80 else shown[:77] + "..."
+        raise EstimationError(f"trace {name!r} must be real numbers, got {shown}")
     if arr.ndim != 1:
         raise EstimationError(f"trace {name!r} must be 1-D, got shape {arr.shape}")
     bad = ~np.isfinite(arr)

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import numbers
 from typing import Any
+
+import numpy as np
 
 
 class InvalidParameterError(ValueError):
@@ -37,10 +40,24 @@ def require(condition: bool, name: str, value: Any, expectation: str) -> None:
         raise InvalidParameterError(f"{name} must be {expectation}, got {value!r}")
 
 
-def require_finite(name: str, value: float) -> None:
-    """Reject NaN and infinities (``float('nan') > 0`` is False, but be explicit)."""
-    try:
-        ok = value == value and abs(value) != float("inf")
-    except TypeError:
-        ok = False
-    require(ok, name, value, "a finite number")
+def require_finite(name: str, value: Any) -> None:
+    """Reject anything but a finite real number (NaN, infinities, strings, arrays, complex, bool).
+
+    Every range check that follows compares ``value`` with numbers: a value of another type
+    would raise a bare ``TypeError`` (complex, str) or ``ValueError`` (a numpy array's
+    ambiguous truth) there, so it is refused here with the package's error naming it.
+    ``bool`` is refused too: ``True`` is an ``int`` but never a meant quantity.
+    """
+    ok = (isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
+          and value == value and abs(value) != float("inf"))
+    require(bool(ok), name, value, "a finite number")
+
+
+def require_int(name: str, value: Any) -> None:
+    """Reject anything but an integer (Python or numpy; ``bool`` is refused).
+
+    A float count (``2.5``) would be truncated or would make ``np.arange`` count fractional
+    steps without a word, so counts must be integers.
+    """
+    require(isinstance(value, numbers.Integral) and not isinstance(value, bool | np.bool_),
+            name, value, "an integer")

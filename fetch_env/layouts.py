@@ -12,7 +12,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from fetch_env.errors import InvalidParameterError, require, require_finite
+from fetch_env.errors import InvalidParameterError, require, require_finite, require_int
 from fetch_env.materials import PRESETS, Material
 
 Shape = Literal["cube", "ellipsoid", "sphere"]
@@ -41,7 +41,9 @@ class Piece:
     y: float = 0.0
 
     def __post_init__(self) -> None:
-        require(self.shape in SHAPES, "shape", self.shape, f"one of {SHAPES}")
+        # (a str first: ``in`` would compare a numpy array element-wise and raise)
+        require(isinstance(self.shape, str) and self.shape in SHAPES, "shape", self.shape,
+                f"one of {SHAPES}")
         require_finite("size", self.size)
         require(MIN_SIZE <= self.size <= MAX_SIZE, "size", self.size,
                 f"in [{MIN_SIZE}, {MAX_SIZE}] m (6 to 25 mm)")
@@ -101,7 +103,7 @@ def check_no_overlap(pieces: tuple[Piece, ...] | list[Piece]) -> None:
 def single_block(shape: Shape = "cube", size: float = 0.015,
                  material: Material | None = None) -> tuple[Piece, ...]:
     """One piece at the origin (the study's block experiments)."""
-    return (Piece(shape, size, material or PRESETS["soft-0.2MPa"]),)
+    return (Piece(shape, size, PRESETS["soft-0.2MPa"] if material is None else material),)
 
 
 def grid(n_along: int, n_across: int, size: float, spacing_along: float,
@@ -112,11 +114,13 @@ def grid(n_along: int, n_across: int, size: float, spacing_along: float,
     ``spacing_along`` is the gap between rows (along y), ``spacing_across`` the gap between
     neighbours within a row (along x) [m]; the grid is centred on the origin.
     """
-    require(n_along >= 1, "n_along", n_along, ">= 1")
-    require(n_across >= 1, "n_across", n_across, ">= 1")
-    require(spacing_along >= 0, "spacing_along", spacing_along, ">= 0 m")
-    require(spacing_across >= 0, "spacing_across", spacing_across, ">= 0 m")
-    mat = material or PRESETS["soft-0.2MPa"]
+    for name, count in (("n_along", n_along), ("n_across", n_across)):
+        require_int(name, count)
+        require(count >= 1, name, count, ">= 1")
+    for name, gap in (("spacing_along", spacing_along), ("spacing_across", spacing_across)):
+        require_finite(name, gap)
+        require(gap >= 0, name, gap, ">= 0 m")
+    mat = PRESETS["soft-0.2MPa"] if material is None else material
     probe = Piece(shape, size, mat)
     ex, ey = probe.extents[:2]
     xs = (np.arange(n_across) - (n_across - 1) / 2) * (ex + spacing_across)
@@ -148,22 +152,41 @@ def diced_mix(rng: np.random.Generator, n_pieces: int | None = None,
               materials: tuple[str, ...] | None = None,
               size_range: tuple[float, float] = (0.007, 0.010),
               spacing: float = 0.0005) -> tuple[Piece, ...]:
-    """A diced mix: 6 to 12 pieces of mixed shapes and stiffnesses packed on a jittered grid.
+    """A diced mix of mixed shapes and stiffnesses packed on a jittered grid.
 
-    Every random choice comes from ``rng``.  ``materials`` names presets to draw from
-    (default: the study's five levels).
+    ``n_pieces``: 1 to 16 pieces (default: 6 to 12, drawn from ``rng``); up to 8 lie in two
+    rows along the clamp direction (one row for a single piece), more in three.  Every random
+    choice comes from ``rng``.  ``materials`` names presets to draw from (default: the
+    study's five levels); ``size_range`` bounds the nominal sizes, within 6 to 25 mm;
+    ``spacing`` is the gap between neighbours [m], >= 0.
     """
     from fetch_env.materials import STUDY_LEVELS
 
+    require(isinstance(rng, np.random.Generator), "rng", rng, "a numpy.random.Generator")
+    if n_pieces is not None:
+        require_int("n_pieces", n_pieces)
     n = int(n_pieces if n_pieces is not None else rng.integers(6, 13))
     require(1 <= n <= 16, "n_pieces", n, "in [1, 16]")
-    names = materials or STUDY_LEVELS
+    if materials is None:
+        names: tuple[str, ...] | list[str] = STUDY_LEVELS
+    else:
+        require(isinstance(materials, tuple | list) and len(materials) >= 1, "materials",
+                materials, "a non-empty tuple of preset names")
+        names = materials
     for name in names:
-        require(name in PRESETS, "materials", name, f"a preset name from {sorted(PRESETS)}")
+        require(isinstance(name, str) and name in PRESETS, "materials", name,
+                f"a preset name from {sorted(PRESETS)}")
+    require(isinstance(size_range, tuple | list) and len(size_range) == 2, "size_range",
+            size_range, "a (low, high) pair [m]")
     lo, hi = size_range
+    require_finite("size_range[0]", lo)
+    require_finite("size_range[1]", hi)
     require(MIN_SIZE <= lo <= hi <= MAX_SIZE, "size_range", size_range,
             "within [0.006, 0.025] m with low <= high")
-    n_along = 2 if n <= 8 else 3
+    require_finite("spacing", spacing)
+    require(spacing >= 0, "spacing", spacing, ">= 0 m")
+    # Every row must hold a piece (an empty row has no depth): a single piece lies alone.
+    n_along = min(n, 2) if n <= 8 else 3
     n_across = int(np.ceil(n / n_along))
     cells = [(r, c) for r in range(n_along) for c in range(n_across)][:n]
     drawn = [(str(rng.choice(SHAPES)), float(rng.uniform(lo, hi)), PRESETS[str(rng.choice(names))])

@@ -9,7 +9,7 @@ modulus; the long-term modulus is ``E_0 (1 - sum_k g_k)``.  The study uses one t
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 from fetch_env.errors import InvalidParameterError, require, require_finite
@@ -60,13 +60,21 @@ class Material:
         require(self.mu >= 0, "mu", self.mu, ">= 0")
         require(self.plate_mu >= 0, "plate_mu", self.plate_mu, ">= 0")
         require(self.yield_strain >= 0, "yield_strain", self.yield_strain, ">= 0")
+        require(isinstance(self.name, str), "name", self.name, "a str")
+        require(isinstance(self.extra_prony, tuple | list), "extra_prony", self.extra_prony,
+                "a tuple of (g, tau) pairs")
         for k, term in enumerate(self.extra_prony, start=2):
-            require(len(term) == 2, f"extra_prony[{k - 2}]", term, "a (g, tau) pair")
+            require(isinstance(term, tuple | list) and len(term) == 2, f"extra_prony[{k - 2}]",
+                    term, "a (g, tau) pair")
             g, tau = term
             require_finite(f"g{k}", g)
             require_finite(f"tau{k}", tau)
             require(0 <= g < 1, f"g{k}", g, "in [0, 1)")
             require(tau > 0, f"tau{k}", tau, "> 0 s")
+        # Stored as a tuple of tuples whatever sequence was given: a Material is frozen and
+        # hashed (scenes are cached and pieces grouped by material), which a list would break.
+        object.__setattr__(self, "extra_prony",
+                           tuple((g, tau) for g, tau in self.extra_prony))
         require(self.g_total < 1, "sum of Prony g", self.g_total, "< 1")
 
     @property
@@ -90,7 +98,10 @@ class Material:
                                        for g, tau in self.prony_terms))
 
     def with_(self, **changes: Any) -> Material:
-        """A copy with some fields changed (validated again)."""
+        """A copy with some fields changed (validated again); an unknown field is an error."""
+        unknown = sorted(set(changes) - {f.name for f in fields(self)})
+        require(not unknown, "Material field", unknown[0] if unknown else None,
+                f"one of {[f.name for f in fields(self)]}")
         return replace(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
@@ -119,7 +130,7 @@ STUDY_LEVELS: tuple[str, ...] = ("hard-200MPa", "firm-40MPa", "medium-5MPa", "so
 
 def preset(name: str) -> Material:
     """Look up a preset by name; the error lists the valid names."""
-    if name not in PRESETS:
+    if not isinstance(name, str) or name not in PRESETS:
         raise InvalidParameterError(
             f"unknown material preset {name!r}; choose from {', '.join(sorted(PRESETS))}")
     return PRESETS[name]

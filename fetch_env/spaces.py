@@ -29,17 +29,32 @@ _ACT_LO = np.array([ACTION_RANGES[k][0] for k in ACTION_NAMES])
 _ACT_HI = np.array([ACTION_RANGES[k][1] for k in ACTION_NAMES])
 
 
+def _as_floats(name: str, value: Any, expectation: str) -> np.ndarray:
+    """``value`` as a float64 array, or the package's error naming it.
+
+    numpy raises a bare ``ValueError``/``TypeError`` for strings and odd objects and drops a
+    complex number's imaginary part with only a warning; both are refused here instead.
+    """
+    try:
+        raw = np.asarray(value)
+        # numbers, or objects that are numbers (e.g. a list mixing ints and floats); never
+        # text, which numpy would parse, nor complex
+        ok = raw.dtype.kind in "biufO"
+        arr = raw.astype(np.float64) if ok else raw
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InvalidParameterError(f"{name} must be {expectation}, got {value!r}")
+    return arr
+
+
 def check_action(action: Any) -> np.ndarray:
     """The action as a float64 (3,) array; raises naming the value if NaN/inf or misshaped.
 
     Finite values outside [-1, 1] are clipped (as SB3 does for its policies).
     """
-    try:
-        a = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InvalidParameterError(
-            f"action must be 3 numbers in [-1, 1] (theta_d, omega, lift_speed), got {action!r}"
-        ) from None
+    a = _as_floats("action", action,
+                   "3 numbers in [-1, 1] (theta_d, omega, lift_speed)")
     if a.shape != (3,):
         raise InvalidParameterError(
             f"action must have shape (3,) (theta_d, omega, lift_speed), got shape {a.shape}: "
@@ -52,16 +67,19 @@ def check_action(action: Any) -> np.ndarray:
 def action_to_physical(action: Any) -> dict[str, float]:
     """Map an action in [-1, 1]^3 linearly onto ``ACTION_RANGES`` (SI units)."""
     a = check_action(action)
-    phys = _ACT_LO + (a + 1.0) / 2.0 * (_ACT_HI - _ACT_LO)
+    # (clipped: at a = 1 the rounding of the affine map can land an ulp above the range)
+    phys = np.clip(_ACT_LO + (a + 1.0) / 2.0 * (_ACT_HI - _ACT_LO), _ACT_LO, _ACT_HI)
     return {k: float(v) for k, v in zip(ACTION_NAMES, phys, strict=True)}
 
 
 def physical_to_action(theta_d: float, omega: float, lift_speed: float) -> np.ndarray:
     """The action (float32, (3,)) that maps to these physical values; raises if out of range."""
-    phys = np.array([theta_d, omega, lift_speed], dtype=np.float64)
-    for name, v, lo, hi in zip(ACTION_NAMES, phys, _ACT_LO, _ACT_HI, strict=True):
-        if not (np.isfinite(v) and lo - 1e-12 <= v <= hi + 1e-12):
+    given = (theta_d, omega, lift_speed)
+    for name, v, lo, hi in zip(ACTION_NAMES, given, _ACT_LO, _ACT_HI, strict=True):
+        x = _as_floats(name, v, f"a number in [{lo}, {hi}]")
+        if not (x.shape == () and np.isfinite(x) and lo - 1e-12 <= x <= hi + 1e-12):
             raise InvalidParameterError(f"{name} must be in [{lo}, {hi}], got {v!r}")
+    phys = np.array([float(v) for v in given], dtype=np.float64)
     return np.clip(2.0 * (phys - _ACT_LO) / (_ACT_HI - _ACT_LO) - 1.0, -1, 1).astype(np.float32)
 
 
@@ -100,8 +118,25 @@ OBS_BOUND = 10.0  # every feature is clipped to [-OBS_BOUND, OBS_BOUND]
 def _encode_one(name: str, value: float) -> float:
     transform, scale, _ = OBS_SPEC[name]
     if transform == "log10":
-        return math.log10(value / scale)
+        q = value / scale
+        # the quotient of a tiny positive value underflows to 0, which log10 refuses
+        return math.log10(q) if q > 0 else math.log10(value) - math.log10(scale)
     return value / scale
+
+
+def _value(values: Mapping[str, float], name: str, default: float | None = None) -> float:
+    """``values[name]`` as a float (NaN allowed), or the package's error naming what is wrong:
+    a missing feature or one that is not a real number (a bare ``KeyError``/``ValueError``)."""
+    if name not in values and default is not None:
+        return default
+    if name not in values:
+        raise InvalidParameterError(f"observation value {name!r} is missing")
+    if values[name] is None:  # (numpy would read it as NaN)
+        raise InvalidParameterError(f"{name} must be a real number, got None")
+    x = _as_floats(name, values[name], "a real number")
+    if x.shape != ():
+        raise InvalidParameterError(f"{name} must be a real number, got {values[name]!r}")
+    return float(x)
 
 
 def encode_observation(values: Mapping[str, float]) -> np.ndarray:
@@ -109,14 +144,17 @@ def encode_observation(values: Mapping[str, float]) -> np.ndarray:
     (log features) or outside the bounds after scaling are reported as 0 with their group's
     flag cleared, so a wild estimate never reaches the policy as a huge number."""
     obs = np.zeros(len(OBS_NAMES), dtype=np.float64)
-    flags = {"visco_valid": float(values.get("visco_valid", 0.0)),
-             "friction_valid": float(values.get("friction_valid", 0.0))}
+    flags = {"visco_valid": _value(values, "visco_valid", 0.0),
+             "friction_valid": _value(values, "friction_valid", 0.0)}
+    for name, flag in flags.items():
+        if not math.isfinite(flag):  # a NaN flag would reach the policy as NaN
+            raise InvalidParameterError(f"{name} must be a finite number, got {flag!r}")
     for group, names in (("visco_valid", VISCO_NAMES), ("friction_valid", FRICTION_NAMES)):
         if not flags[group]:
             continue
         enc = {}
         for n in names:
-            v = float(values[n])
+            v = _value(values, n)
             ok = math.isfinite(v) and (v > 0 or OBS_TRANSFORM[n] == "linear")
             e = _encode_one(n, v) if ok else math.nan
             if not (math.isfinite(e) and abs(e) <= OBS_BOUND):
@@ -130,17 +168,22 @@ def encode_observation(values: Mapping[str, float]) -> np.ndarray:
         if n in flags:
             obs[i] = flags[n]
         elif n not in VISCO_NAMES and n not in FRICTION_NAMES:
-            obs[i] = _encode_one(n, float(values[n]))
+            v = _value(values, n)
+            if not math.isfinite(v):  # layout features are measured, never missing
+                raise InvalidParameterError(f"{n} must be a finite number, got {v!r}")
+            obs[i] = _encode_one(n, v)
     return np.clip(obs, -OBS_BOUND, OBS_BOUND).astype(np.float32)
 
 
 def decode_observation(obs: Any) -> dict[str, float]:
     """The observation back in SI units (see ``OBS_UNITS``); estimated parameters whose
     validity flag is 0 decode to NaN."""
-    o = np.asarray(obs, dtype=np.float64)
+    o = _as_floats("observation", obs, f"{len(OBS_NAMES)} finite numbers")
     if o.shape != (len(OBS_NAMES),):
         raise InvalidParameterError(
             f"observation must have shape ({len(OBS_NAMES)},), got {o.shape}")
+    if not np.isfinite(o).all():
+        raise InvalidParameterError(f"observation must be finite, got {obs!r}")
     out: dict[str, float] = {}
     for i, n in enumerate(OBS_NAMES):
         transform, scale, _ = OBS_SPEC[n]
