@@ -162,6 +162,28 @@ class ProbeConfig:
     slip_timestep: float = 0.01
     relaxation_timestep: float | None = None
 
+    def __post_init__(self) -> None:
+        for name, (lo, hi, lo_open) in _PROBE_LIMITS.items():
+            value = getattr(self, name)
+            require_finite(name, value)
+            ok = (lo < value if lo_open else lo <= value) and value <= hi
+            require(ok, name, value, f"in {'(' if lo_open else '['}{lo:g}, {hi:g}]")
+        if self.relaxation_timestep is not None:
+            require_finite("relaxation_timestep", self.relaxation_timestep)
+            require(1e-4 <= self.relaxation_timestep <= 0.02, "relaxation_timestep",
+                    self.relaxation_timestep, "in [1e-4, 0.02] s or None")
+
+
+# ProbeConfig's settings: name -> (low, high, low end excluded)
+_PROBE_LIMITS: dict[str, tuple[float, float, bool]] = {
+    "strain": (0.0, 0.5, True), "omega": (1e-3, 2.0, False), "hold": (0.0, 600.0, False),
+    "settle": (0.05, 5.0, False), "slip_strain": (0.0, 0.5, True),
+    "slip_omega": (1e-3, 2.0, False), "slip_hold": (0.0, 600.0, False),
+    "slide_distance": (0.0, 0.02, True), "slide_time": (0.0, 120.0, True),
+    "hold_time_scale": (1.0, 50.0, False), "hold_time_growth": (0.0, 0.5, False),
+    "relaxation_impratio": (1.0, 1e4, False), "slip_timestep": (1e-4, 0.02, False),
+}
+
 
 @dataclass
 class ProbeOutcome:
@@ -297,7 +319,7 @@ def first_contact_angle(scene: Scene) -> tuple[float, float, float]:
     return float(max(th[k], 0.0)), float(h[k]), float(lateral.max())
 
 
-def _probe_angle(sim: FetchSimulator, strain: float, experiment: str) -> float:
+def probe_angle(sim: FetchSimulator, strain: float, experiment: str) -> float:
     """Clamp angle squeezing the piece by ``strain`` of its width past first contact.
 
     Small-angle travel of the contact point is ``depth * theta``; the result stays below
@@ -308,6 +330,9 @@ def _probe_angle(sim: FetchSimulator, strain: float, experiment: str) -> float:
     theta = theta_c + strain * half_width / depth
     closed = getattr(scene.pose, "theta_closed", math.inf)
     return float(min(theta, 0.9 * closed))
+
+
+_probe_angle = probe_angle
 
 
 def _mean_moment(tr: dict[str, np.ndarray]) -> np.ndarray:

@@ -230,7 +230,9 @@ def test_estimate_help_states_its_own_defaults(capsys: pytest.CaptureFixture[str
         main(["estimate", "--help"])
     assert exc.value.code == 0
     out = " ".join(capsys.readouterr().out.split())  # undo argparse's line wrapping
-    assert "(default: 0.0244 for the relaxation probe, 0.06 for slip)" in out
+    assert ("(default: 0.0244 for the relaxation probe, 0.06 for slip, each kept within the "
+            "angles that squeeze the piece by 3-12 % (slip 5-25 %) of its half-width past "
+            "first contact") in out
     assert "(default: 0.02 for the relaxation probe, 0.1 for slip)" in out
     assert "(default: 25 for the relaxation probe, 0.5 for slip)" in out
     assert "to the relaxation probe only under --probe both" in out
