@@ -48,7 +48,9 @@ from fetch_env.food_space import (
     sample_foods,
 )
 from fetch_env.probes import (
+    CALIBRATION_FILE,
     PARAM_NAMES,
+    PROBE_CALIBRATIONS,
     PROBE_PRESETS,
     PROBE_SYSTEMATIC_SD,
     run_probes,
@@ -69,13 +71,16 @@ def foods_of(name: str, n: int) -> list[Food]:
     return corner_foods()[:n]
 
 
-def measure(food: Food, preset: str, noise: float, seed: int) -> dict[str, Any]:
-    """Probe one food and hold the estimates to the truth (never raises)."""
+def measure(food: Food, preset: str, noise: float, seed: int, calibrate: bool = True
+            ) -> dict[str, Any]:
+    """Probe one food and hold the estimates to the truth (never raises); ``calibrate``
+    applies the preset's shipped calibration, where it has one."""
     config = PROBE_PRESETS[preset]
     piece = food.piece()
+    calibration = PROBE_CALIBRATIONS.get(preset) if calibrate else None
     t0 = time.perf_counter()
     try:
-        out = run_probes((piece,), config, noise=noise, seed=seed)
+        out = run_probes((piece,), config, noise=noise, seed=seed, calibration=calibration)
         truth = true_parameters_exact(piece, config)
     except Exception as exc:  # a harness keeps going; the record says what failed
         return {"food": food.to_dict(), "crash": f"{type(exc).__name__}: {exc}"}
@@ -88,6 +93,7 @@ def measure(food: Food, preset: str, noise: float, seed: int) -> dict[str, Any]:
         "friction_valid": out.friction_valid,
         "reliable": out.reliable,
         "warnings": out.warnings,
+        "uncalibrated": out.details.get("uncalibrated"),
         "wall_probes": out.wall_time,
         "wall_fits": out.details.get("wall_fits", math.nan),
         "wall_total": time.perf_counter() - t0,
@@ -265,6 +271,24 @@ def calibrate(records: list[dict[str, Any]], sd_now: dict[str, float],
     return out
 
 
+def _fit_calibration(run: Path, preset: str) -> int:
+    """Fit ``preset``'s calibration on a run's records and write it into the package."""
+    from estimators.calibration import fit_calibration
+
+    data = json.loads(run.read_text())
+    if data["meta"].get("calibration") is not None or data["meta"]["set"] != "tuning":
+        raise SystemExit(f"{run}: fit a calibration on an uncalibrated tuning run")
+    foods = [(r["food"]["shape"], r["food"]["size"], r["estimate"], r["truth"])
+             for r in data["records"] if "crash" not in r]
+    cal = fit_calibration(foods, source=f"{run.name} ({data['meta']['set']} set, seed "
+                                        f"{data['meta']['seed']}, preset {preset})")
+    table = json.loads(CALIBRATION_FILE.read_text()) if CALIBRATION_FILE.exists() else {}
+    table[preset] = cal.to_dict()
+    _write_atomic(CALIBRATION_FILE, json.dumps(table, indent=1) + "\n")
+    print(json.dumps(cal.to_dict(), indent=1))
+    return 0
+
+
 def _done_indices(jsonl: Path) -> dict[int, dict[str, Any]]:
     if not jsonl.exists():
         return {}
@@ -289,10 +313,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=Path("docs/data/validation"))
     p.add_argument("--name", default=None, help="file stem (default: set_preset_noise)")
     p.add_argument("--resume", action="store_true", help="skip foods already in the .jsonl")
+    p.add_argument("--no-calibration", action="store_true",
+                   help="leave the preset's shipped calibration off")
+    p.add_argument("--fit-calibration", type=Path, default=None, metavar="JSON",
+                   help="fit the preset's calibration on a finished run's records (a tuning "
+                   "run made with --no-calibration), write it to the package's calibration "
+                   "file and exit")
     p.add_argument("--calibrate", type=Path, default=None, metavar="JSON",
                    help="print the systematic sds that give 95 %% coverage on a finished "
                    "run's records (a tuning run) and exit")
     args = p.parse_args(argv)
+    if args.fit_calibration is not None:
+        return _fit_calibration(args.fit_calibration, args.preset)
     if args.calibrate is not None:
         data = json.loads(args.calibrate.read_text())
         used = data["meta"].get("systematic_sd", dict.fromkeys(PARAM_NAMES, 0.0))
@@ -300,7 +332,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if not 1 <= args.n <= 4096 or not 0 <= args.noise <= 0.5 or args.workers < 1:
         p.error("--n in [1, 4096], --noise in [0, 0.5], --workers >= 1")
-    name = args.name or f"{args.set}_{args.preset}_noise{args.noise:g}"
+    calibrated = not args.no_calibration and args.preset in PROBE_CALIBRATIONS
+    name = args.name or (f"{args.set}_{args.preset}{'' if calibrated else '_uncal'}"
+                         f"_noise{args.noise:g}")
     args.out.mkdir(parents=True, exist_ok=True)
     jsonl = args.out / f"{name}.jsonl"
     done = _done_indices(jsonl) if args.resume else {}
@@ -315,12 +349,13 @@ def main(argv: list[str] | None = None) -> int:
             "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
             "cpus": os.cpu_count(), "python": platform.python_version(),
             "systematic_sd": dict(PROBE_SYSTEMATIC_SD),
+            "calibration": PROBE_CALIBRATIONS[args.preset].to_dict() if calibrated else None,
             "command": "python benchmarks/validate_estimators.py " + " ".join(argv or sys.argv[1:])}
     records = list(done.values())
     t0 = time.perf_counter()
     with jsonl.open("a") as log, ProcessPoolExecutor(args.workers) as pool:
-        futures = [pool.submit(measure, f, args.preset, args.noise, 7919 * f.index + 1)
-                   for f in foods]
+        futures = [pool.submit(measure, f, args.preset, args.noise, 7919 * f.index + 1,
+                               calibrated) for f in foods]
         for i, fut in enumerate(as_completed(futures), 1):
             rec = fut.result()
             records.append(rec)

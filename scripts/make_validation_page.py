@@ -19,10 +19,14 @@ from benchmarks.validate_estimators import table  # noqa: E402
 
 DATA = ROOT / "docs" / "data" / "validation"
 RUNS = (
-    ("reporting_measure_noise0", "Reporting foods, no added noise"),
-    ("reporting_measure_noise0.01", "Reporting foods, 1 % sensor noise"),
-    ("tuning_measure_noise0", "Tuning foods (the systematic sds were computed from this run, "
-     "made with them at 0)"),
+    ("reporting_measure_noise0", "Reporting foods, calibrated, no added noise"),
+    ("reporting_measure_noise0.01", "Reporting foods, calibrated, 1 % sensor noise"),
+    ("reporting_measure_uncal_noise0", "Reporting foods, without the calibration"),
+    ("tuning_measure_uncal_noise0", "Tuning foods without the calibration (the calibration "
+     "was fitted on this run)"),
+    ("tuning_measure_noise0", "Tuning foods, calibrated (the systematic sds were computed "
+     "from this run and the next)"),
+    ("tuning_measure_noise0.01", "Tuning foods, calibrated, 1 % sensor noise"),
 )
 
 HEAD = """# Estimator validation over the food space
@@ -36,11 +40,16 @@ material's; K1 + K2 is the eq. 7 stiffness of the piece's elastic twin under the
 (`fetch_env.probes.elastic_stiffness`), split by g1.
 
 Tuning and reporting foods are disjoint designs: seed 1000 (`TUNING_SEED`) and seed 2000
-(`REPORTING_SEED`).  The one constant set chosen on data, the probes' systematic
-uncertainty `fetch_env.probes.PROBE_SYSTEMATIC_SD`, was computed from the tuning run
-(`python benchmarks/validate_estimators.py --calibrate
-docs/data/validation/tuning_measure_noise0.json`)
-and the reporting runs say how well it holds on other foods.
+(`REPORTING_SEED`).  Two things were chosen on data, both on the tuning foods only, and the
+reporting runs say how well they hold on other foods:
+
+* the probe calibration (`estimators.calibration`, shipped in
+  `fetch_env/assets/probe_calibration.json`): a robust fit of `log(estimate / truth)` of
+  K1 + K2, g1 and tau1 against what the robot knows (shape, size, the probe's own K, mu, g1,
+  tau1), which the probes then divide out: `python benchmarks/validate_estimators.py
+  --preset measure --fit-calibration docs/data/validation/tuning_measure_uncal_noise0.json`;
+* the probes' systematic uncertainty `fetch_env.probes.PROBE_SYSTEMATIC_SD`, from the
+  calibrated tuning runs: `python benchmarks/validate_estimators.py --calibrate RUN.json`.
 
 Intervals: the hold fit's covariance inflated by the residuals' autocorrelation, the change
 of each estimate when the hold window starts later or ends earlier (model error the trace

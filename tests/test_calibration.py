@@ -1,0 +1,88 @@
+"""Probe calibration (estimators.calibration): a known bias model is recovered and undone."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from estimators import EstimationError
+from estimators.calibration import FEATURES, Calibration, features, fit_calibration
+from fetch_env.probes import PROBE_CALIBRATIONS
+
+TRUE_B = {
+    "K_el": (0.05, -0.01, 0.02, 0.08, -0.03, 0.0, -0.04, 0.0),
+    "g1": (-0.04, 0.02, 0.0, 0.03, -0.02, 0.015, 0.0, 0.0),
+    "tau1": (0.08, -0.01, -0.005, 0.0, 0.02, 0.05, 0.0, -0.01),
+}
+
+
+def _foods(n: int, seed: int, outliers: int = 0) -> list:
+    """Reference foods whose estimates carry exactly the TRUE_B bias (plus a few gross
+    failures, which the robust fit must not follow)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        shape = ("cube", "ellipsoid", "sphere")[i % 3]
+        size = float(rng.uniform(0.008, 0.025))
+        g1, tau1, mu = float(rng.uniform(0.1, 0.8)), float(np.exp(rng.uniform(-0.7, 2.3))), \
+            float(rng.uniform(0.1, 0.8))
+        k_el = float(np.exp(rng.uniform(np.log(100), np.log(1e5))))
+        truth = {"K1": (1 - g1) * k_el, "K2": g1 * k_el, "g1": g1, "tau1": tau1, "mu": mu}
+        est = dict(truth)
+        # the features use the estimates, so solve the bias fixed point by iteration
+        for _ in range(50):
+            x = features(shape, size, est)
+            f = {t: math.exp(float(np.dot(TRUE_B[t], x))) for t in TRUE_B}
+            gross = 1.5 if i < outliers else 1.0
+            est = {"K1": (1 - g1 * f["g1"]) * k_el * f["K_el"], "K2": g1 * f["g1"] * k_el *
+                   f["K_el"], "g1": g1 * f["g1"], "tau1": tau1 * f["tau1"] * gross, "mu": mu}
+        out.append((shape, size, est, truth))
+    return out
+
+
+def test_fit_recovers_a_known_bias_and_apply_undoes_it() -> None:
+    cal = fit_calibration(_foods(80, 1), f_scale=0.03)
+    for t, b in TRUE_B.items():
+        assert_allclose(cal.coefficients[t], b, atol=2e-3, err_msg=t)
+    for shape, size, est, truth in _foods(10, 2):
+        fixed, warns = cal.apply(shape, size, est)
+        assert not warns
+        for k in ("K1", "K2", "g1", "tau1"):
+            assert_allclose(fixed[k], truth[k], rtol=3e-3, err_msg=k)
+        assert_allclose(fixed["B"], truth["tau1"] * truth["K2"], rtol=5e-3)
+        assert fixed["mu"] == est["mu"]
+
+
+def test_a_few_gross_failures_do_not_steer_the_fit() -> None:
+    cal = fit_calibration(_foods(80, 3, outliers=4), f_scale=0.03)
+    assert_allclose(cal.coefficients["tau1"], TRUE_B["tau1"], atol=0.02)
+
+
+def test_round_trip_and_bad_calibrations_are_refused() -> None:
+    cal = fit_calibration(_foods(40, 4))
+    assert Calibration.from_dict(cal.to_dict()) == cal
+    with pytest.raises(EstimationError, match="tau1"):
+        Calibration({"K_el": (0.0,) * len(FEATURES), "g1": (0.0,) * len(FEATURES)})
+    with pytest.raises(EstimationError, match="features"):
+        Calibration.from_dict({**cal.to_dict(), "features": ["1"]})
+    with pytest.raises(EstimationError, match="at least"):
+        fit_calibration(_foods(5, 5))
+    with pytest.raises(EstimationError, match="shape"):
+        features("blob", 0.01, _foods(1, 6)[0][2])
+    with pytest.raises(EstimationError, match="tau1"):
+        features("cube", 0.01, {**_foods(1, 6)[0][2], "tau1": math.nan})
+
+
+def test_a_g1_pushed_to_one_is_held_and_said() -> None:
+    cal = Calibration({"K_el": (0.0,) * 8, "g1": (-1.0,) + (0.0,) * 7, "tau1": (0.0,) * 8})
+    fixed, warns = cal.apply("cube", 0.015, {"K1": 100.0, "K2": 900.0, "g1": 0.9, "tau1": 1.0,
+                                             "mu": 0.3})
+    assert fixed["g1"] == 0.99 and warns and "0.99" in warns[0]
+
+
+def test_the_shipped_measure_calibration_is_fitted_on_tuning_foods() -> None:
+    cal = PROBE_CALIBRATIONS["measure"]
+    assert "tuning set, seed 1000" in cal.source and cal.n_foods >= 48
