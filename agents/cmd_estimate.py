@@ -308,12 +308,68 @@ def probe_actions(args: argparse.Namespace, pieces: tuple[Any, ...]) -> dict[str
     return out
 
 
+STUDY_OPTIONS = ("--theta-d", "--omega", "--hold", "--clamp-weight", "--slide-time")
+
+
+def which_probes(args: argparse.Namespace) -> str:
+    """``--probes``, or where it is omitted: "study" when a study-probe option is given
+    (``STUDY_OPTIONS`` or ``--method three-step``), else "measure"."""
+    given = [o for o in STUDY_OPTIONS if o in getattr(args, "simulation_options", ())]
+    if args.probes == "measure" and (given or args.method != "full"):
+        what = ", ".join(given) or f"--method {args.method}"
+        raise UsageError(f"food-fetch estimate: {what} sets the study's probes; it has no "
+                         "effect with --probes measure (give --probes study)")
+    if args.probes is not None:
+        return str(args.probes)
+    return "study" if given or args.method != "full" else "measure"
+
+
+def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any
+                ) -> ProbeEstimate:
+    """The shared probes of ``fetch_env.probes`` (adaptive angles, 20 s time-scaled hold,
+    calibrated, intervals with model error), held to the elastic-twin truth."""
+    from fetch_env.errors import SimulationDivergedError
+    from fetch_env.probes import (
+        PROBE_CALIBRATIONS,
+        PROBE_PRESETS,
+        run_probes,
+        true_parameters_exact,
+    )
+
+    config = PROBE_PRESETS["measure"]
+    res = run_probes(pieces, config, noise=args.noise, seed=args.seed,
+                     calibration=PROBE_CALIBRATIONS.get("measure"))
+    keep = {"both": NAMES, "relaxation": NAMES[:5], "slip": ("mu",)}[args.probe]
+    estimate = {k: res.estimates[k] if k in keep else math.nan for k in NAMES}
+    interval = {k: res.intervals.get(k, (math.nan, math.nan)) for k in keep}
+    out = ProbeEstimate(true=dict.fromkeys(NAMES, math.nan), estimate=estimate,
+                        interval=interval, reliable=res.reliable, warnings=list(res.warnings))
+    try:
+        truth = true_parameters_exact(pieces[0], config)
+    except SimulationDivergedError as exc:
+        out.warnings.append(f"true K1, K2, B not computed: the elastic twin diverged: {exc}")
+        truth = {"K1": math.nan, "K2": math.nan, "B": math.nan, "g1": material.g1,
+                 "tau1": material.tau1, "mu": material.mu}
+    if not truth["K1"] + truth["K2"] > 0:
+        out.warnings.append("true K1, K2, B not computed: the elastic twin gave no moment")
+        truth.update(K1=math.nan, K2=math.nan, B=math.nan)
+    out.true.update({k: truth[k] for k in keep})
+    out.details["settings"] = {"probes": "measure", "noise": args.noise, "seed": args.seed,
+                               "probe": args.probe, "config": dataclasses.asdict(config)}
+    out.details["probes"] = {k: v for k, v in res.details.items() if k != "uncalibrated"}
+    out.details["uncalibrated"] = res.details.get("uncalibrated")
+    out.details["wall_time"] = res.wall_time
+    return out
+
+
 def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
     from fetch_env.layouts import Piece
 
     _check(args)
     material = make_material(args)
     pieces = (Piece(args.shape, args.size, material),)
+    if which_probes(args) == "measure":
+        return run_measure(args, pieces, material)
     actions = probe_actions(args, pieces)  # every input is valid past here
     true = {k: math.nan for k in NAMES}
     true.update(g1=material.g1, tau1=material.tau1, mu=material.mu)
@@ -419,12 +475,13 @@ def _fmt(v: float) -> str:
 def print_report(r: ProbeEstimate) -> None:
     errs = r.errors()
     units = {"K1": "N/m", "K2": "N/m", "B": "N s/m", "g1": "", "tau1": "s", "mu": ""}
-    print(f"{'name':<6}{'true':>12}{'estimate':>12}{'error':>10}   95 % interval")
+    print(f"{'name':<6}{'true':>12} {'estimate':>12} {'error':>11}   95 % interval")
     for k in NAMES:
         lo, hi = r.interval.get(k, (math.nan, math.nan))
         err = f"{100 * errs[k]:+.3f} %" if np.isfinite(errs[k]) else "-"
         iv = f"[{_fmt(lo)}, {_fmt(hi)}]" if np.isfinite(lo) else "-"
-        print(f"{k:<6}{_fmt(r.true[k]):>12}{_fmt(r.estimate[k]):>12}{err:>10}   {iv} {units[k]}")
+        print(f"{k:<6}{_fmt(r.true[k]):>12} {_fmt(r.estimate[k]):>12} {err:>11}   {iv} "
+              f"{units[k]}")
     print(f"R^2 clamp {_fmt(r.r2_clamp)}, hold {_fmt(r.r2_hold)}; reliable: {r.reliable}")
     if "truth_K" in r.details:
         d = r.details["truth_K"]
@@ -481,6 +538,16 @@ def register(sub: Any) -> None:
     # Neither probe lifts: hide --lift-speed and reject it when given (see _check).
     p._option_string_actions["--lift-speed"].help = argparse.SUPPRESS
     p.set_defaults(lift_speed=None)
+    p.add_argument(
+        "--probes",
+        choices=("measure", "study"),
+        default=None,
+        help="measure: the environments' probes, made for any food (the clamp angle adapts "
+        "to the piece, a 20 s time-scaled hold, a calibration fitted on reference foods, 95 %% "
+        "intervals that include model error; docs/estimator_validation.md); study: the "
+        "study's fixed clamp (--theta-d, --omega, --hold, --method, --clamp-weight, "
+        "--slide-time). Default: study where one of those is given, else measure",
+    )
     p.add_argument(
         "--method",
         choices=("full", "three-step"),

@@ -18,13 +18,14 @@ QUICK = [f for f in CORNERS if (f.shape, f.size, f.young, f.g1) in {
     ("sphere", 0.025, 0.0123e6, 0.8), ("cube", 0.025, 5e6, 0.1), ("ellipsoid", 0.008, 5e6, 0.8)}]
 
 
-def _argv(f: Food) -> list[str]:
+def _argv(f: Food, probes: str) -> list[str]:
+    study = ["--probes", "study", "--hold", "8"] if probes == "study" else []
     return ["estimate", "--shape", f.shape, "--size", repr(f.size), "--young", repr(f.young),
-            "--g1", repr(f.g1), "--tau1", repr(f.tau1), "--mu", repr(f.mu), "--hold", "8"]
+            "--g1", repr(f.g1), "--tau1", repr(f.tau1), "--mu", repr(f.mu), *study]
 
 
-def _check(f: Food, capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = run_cli(_argv(f), capsys)  # an escaping exception fails the test
+def _check(f: Food, capsys: pytest.CaptureFixture[str], probes: str) -> None:
+    code, out, err = run_cli(_argv(f, probes), capsys)  # an escaping exception fails it
     if code == 2:
         assert_one_line_error(code, err)
         return
@@ -40,15 +41,17 @@ def _check(f: Food, capsys: pytest.CaptureFixture[str]) -> None:
             assert math.isfinite(float(value)) and float(value) > 0
 
 
+@pytest.mark.parametrize("probes", ["measure", "study"])
 @pytest.mark.parametrize("food", QUICK, ids=lambda f: f"{f.shape}-{f.size}-{f.young:g}")
-def test_estimate_answers_at_hard_corners(food: Food, capsys: pytest.CaptureFixture[str]
-                                          ) -> None:
+def test_estimate_answers_at_hard_corners(food: Food, probes: str,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
     assert len(QUICK) == 3
-    _check(food, capsys)
+    _check(food, capsys, probes)
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("probes", ["measure", "study"])
 @pytest.mark.parametrize("food", CORNERS, ids=lambda f: f"{f.shape}-{f.size}-{f.young:g}-{f.g1}")
-def test_estimate_answers_at_every_corner(food: Food, capsys: pytest.CaptureFixture[str]
-                                          ) -> None:
-    _check(food, capsys)
+def test_estimate_answers_at_every_corner(food: Food, probes: str,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    _check(food, capsys, probes)
