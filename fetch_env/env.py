@@ -31,6 +31,8 @@ from fetch_env.errors import InvalidParameterError, SimulationDivergedError, req
 from fetch_env.layouts import Piece
 from fetch_env.probes import (
     PARAM_NAMES,
+    PROBE_CALIBRATIONS,
+    PROBE_PRESETS,
     ProbeConfig,
     ProbeOutcome,
     probe_piece_index,
@@ -123,6 +125,12 @@ _COMMON_DOC = """
     failed estimate gives 0 and a cleared flag. ``"oracle"``: the true values (g1, tau1, mu
     of the material exactly; K1, K2, B nominal, ``K = 2 E A / l`` split by g1, see
     ``fetch_env.probes.nominal_stiffness``). ``"none"``: zeros, flags 0 (the ablation).
+    With the default probe settings the model's estimates are calibrated
+    (``probe_calibrated=True``; ``estimators.calibration``): a correction of the probes'
+    systematic errors (the contact in series with the food, friction at the faces) fitted on
+    reference foods of the food space that no environment draws from
+    (``fetch_env.food_space.TUNING_SEED``), as an instrument is calibrated against reference
+    samples; ``docs/estimator_validation.md`` has what it does on other foods.
     The hold must be of the order of tau1 (1 to 6 s) to separate g1 from tau1.  The default
     ``probe_hold=6`` is simulated quasi-statically time-scaled: past its first
     ``probes.HOLD_SETTLE`` the blades stand still and only the food relaxes, so each physics
@@ -161,7 +169,8 @@ _COMMON_DOC = """
 
     ## Info
     reset: ``true_params``, ``estimated_params`` (SI, None if not identified), ``probe_piece``,
-    ``probe_warnings``, ``pieces`` (scene description), ``hold``.
+    ``probe_warnings``, ``probe_calibration`` (the calibration applied to the estimates, or
+    None), ``pieces`` (scene description), ``hold``.
     step: also ``reward_fetch``, ``reward_deformation``, ``reward_time``, ``fetch_rate``,
     ``fetch_rate_mass``, ``max_log_strain``, ``is_success`` (every piece fetched and
     LE_max <= safe_log_strain), ``passed_through`` (a piece passed through a blade or the
@@ -196,6 +205,7 @@ _COMMON_DOC = """
     | probe_strain | 0.06 | relaxation probe's squeeze past first contact (share of width) |
     | probe_time_scale | 8.0 | relaxation hold's quasi-static time scale, 1-50 (1: real time) |
     | probe_time_growth | 0.05 | least share of the hold's elapsed time a scaled step stands for |
+    | probe_calibrated | True | correct the probes' systematic errors (default probes only) |
     | contact_timeconst | 0.01 | contacts' time constant [s] (see Geometry.contact_timeconst) |
     | fetch_timestep | 0.005 | the fetch's physics step [s], 0.001-0.01 (probes keep their own) |
     | fetch_impratio | None | fetch's friction impratio, 1-1e4 (None: 1000, 100 if several pieces) |
@@ -219,6 +229,8 @@ _COMMON_DOC = """
 
     ## Version history
     - v0: first release (one fetch per episode, reset probes, model/oracle/none estimator).
+      The model's estimates are calibrated by default (``probe_calibrated``; False gives
+      the uncalibrated estimates of earlier v0 releases).
       Revised in place before any tagged release: the relaxation probe's contact stiffened
       with the food and g1, tau1 from the hold (session 9); a 6 s time-scaled relaxation hold
       and a 0.15 s slide (session 11, was a 3 s real-time hold and a 0.3 s slide); the hold's
@@ -285,6 +297,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         probe_strain: float = 0.06,
         probe_time_scale: float = 8.0,
         probe_time_growth: float = 0.05,
+        probe_calibrated: bool = True,
         contact_timeconst: float = 0.01,
         fetch_timestep: float = 0.005,
         fetch_impratio: float | None = None,
@@ -345,6 +358,14 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
                                         hold_time_scale=probe_time_scale,
                                         hold_time_growth=probe_time_growth)
         self.geometry = Geometry(contact_timeconst=contact_timeconst)  # validates it
+        require(isinstance(probe_calibrated, bool), "probe_calibrated", probe_calibrated,
+                "True or False")
+        # The shipped calibration was fitted for the default probes; other settings run
+        # uncalibrated (info["probe_calibration"] says which).
+        default_probes = (self.probe_config == PROBE_PRESETS["env"]
+                          and self.geometry == Geometry())
+        self.probe_calibration = (PROBE_CALIBRATIONS.get("env")
+                                  if probe_calibrated and default_probes else None)
         self.fetch_timestep = float(fetch_timestep)
         self.fetch_impratio = None if fetch_impratio is None else float(fetch_impratio)
         self.render_mode = render_mode
@@ -487,8 +508,9 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.estimator == "model":
             # Probes depend only on the probed piece (simulated alone) and the config.
             outcome: ProbeOutcome = self._probes.get_or(
-                (pieces[k], self.probe_config),
-                lambda: run_probes(pieces, self.probe_config, self.geometry))
+                (pieces[k], self.probe_config, self.probe_calibration is not None),
+                lambda: run_probes(pieces, self.probe_config, self.geometry,
+                                   calibration=self.probe_calibration))
             est = dict(outcome.estimates)
             flags = {"visco_valid": float(outcome.visco_valid),
                      "friction_valid": float(outcome.friction_valid)}
@@ -511,6 +533,9 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         info = {"true_params": {n: float(v) for n, v in true.items()},
                 "estimated_params": estimated, "probe_piece": k,
                 "probe_warnings": warnings, "pieces": [p.to_dict() for p in pieces],
+                "probe_calibration": (self.probe_calibration.source
+                                      if self.probe_calibration and self.estimator == "model"
+                                      else None),
                 "hold": self._episode_hold}
         self._last_obs = (obs, info)
         return obs.copy(), dict(info)

@@ -15,6 +15,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.bench_env_estimates import table as env_table  # noqa: E402
 from benchmarks.validate_estimators import table  # noqa: E402
 
 DATA = ROOT / "docs" / "data" / "validation"
@@ -78,6 +79,17 @@ def main() -> int:
         parts.append(f"\nMachine: {meta['machine']}, {meta['cpus']} cores, Python "
                      f"{meta['python']}; {meta['wall_s']:.0f} s with 2 workers.  "
                      f"![errors]({'data/validation/' + stem}_errors.png)\n\n")
+    env = DATA / "env_estimates.json"
+    if env.exists():
+        data = json.loads(env.read_text())
+        parts.append("## The environments' observations\n\n"
+                     "Model estimates against the oracle at reset, the `env` probes (a 6 s "
+                     "hold), with the calibration fitted for them on the tuning foods "
+                     "(`--preset env`) and without it, on held-back seeds from 90000; the "
+                     "probed piece of a multi-piece scene is simulated alone, so its errors "
+                     "are the food's, and the layouts differ in the foods they draw. "
+                     f"Command: `{data['meta']['command'].strip()}`.\n\n")
+        parts.append(env_table(data["results"]) + "\n")
     out = ROOT / "docs" / "estimator_validation.md"
     tmp = out.with_name(out.name + ".tmp")
     tmp.write_text("".join(parts))

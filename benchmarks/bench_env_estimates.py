@@ -1,0 +1,103 @@
+"""The environments' model estimates against their oracle, and what the probes cost a reset.
+
+For each layout, resets the env on held-back seeds (Block: ``tests/test_env_slow.HELD_BACK``,
+90000-90063; the other layouts: 90000-90031) with the probes calibrated and uncalibrated
+(``probe_calibrated``), and reports, per parameter, the median, 95th percentile and max of
+|model / oracle - 1| (g1, tau1 and mu: the material's, exact; K1, K2, B: the oracle's
+nominal ``2 E A / l``, so only their scatter means much), and the probes' median wall time
+per reset.  Writes JSON and a markdown table.
+
+    python benchmarks/bench_env_estimates.py --workers 2 --out docs/data/validation
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from fetch_env.env import FoodFetchEnv
+from fetch_env.probes import PARAM_NAMES
+
+LAYOUTS = {"block": 64, "row": 32, "two_rows": 32, "diced": 32}
+FIRST_SEED = 90_000
+
+
+def run(layout: str, calibrated: bool, seeds: list[int]) -> dict[str, Any]:
+    """Reset on every seed; the errors per parameter and the probes' wall times."""
+    env = FoodFetchEnv(layout=layout, estimator="model", probe_calibrated=calibrated)
+    errs: dict[str, list[float]] = {k: [] for k in PARAM_NAMES}
+    walls = []
+    for seed in seeds:
+        _, info = env.reset(seed=seed)
+        walls.append(env.last_probe_wall_time)
+        for k in PARAM_NAMES:
+            est = info["estimated_params"][k]
+            errs[k].append(float("nan") if est is None else est / info["true_params"][k] - 1)
+    return {"layout": layout, "calibrated": calibrated, "seeds": [seeds[0], seeds[-1]],
+            "errors": errs, "wall_median": float(np.median(walls))}
+
+
+def summary(errs: list[float]) -> dict[str, float]:
+    e = np.abs(np.array(errs, dtype=float))
+    ok = e[np.isfinite(e)]
+    if not ok.size:
+        return {"found": 0, "median": float("nan"), "p95": float("nan"), "max": float("nan")}
+    return {"found": int(ok.size), "median": float(np.median(ok)),
+            "p95": float(np.percentile(ok, 95)), "max": float(ok.max())}
+
+
+def table(results: list[dict[str, Any]]) -> str:
+    lines = ["| layout | calibrated | scenes | " + " | ".join(
+        f"{k} median / 95th" for k in ("g1", "tau1", "mu")) + " | probes a reset |",
+        "|---|---|---|---|---|---|---|"]
+    for r in results:
+        cells = []
+        for k in ("g1", "tau1", "mu"):
+            s = summary(r["errors"][k])
+            cells.append(f"{100 * s['median']:.1f} / {100 * s['p95']:.1f} %")
+        n = len(r["errors"]["g1"])
+        lines.append(f"| {r['layout']} | {'yes' if r['calibrated'] else 'no'} | {n} | "
+                     + " | ".join(cells) + f" | {1e3 * r['wall_median']:.0f} ms |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--out", type=Path, default=Path("docs/data/validation"))
+    p.add_argument("--layouts", nargs="+", choices=sorted(LAYOUTS), default=list(LAYOUTS))
+    args = p.parse_args(argv)
+    if args.workers < 1:
+        p.error("--workers must be >= 1")
+    jobs = [(lay, cal, list(range(FIRST_SEED, FIRST_SEED + LAYOUTS[lay])))
+            for lay in args.layouts for cal in (True, False)]
+    with ProcessPoolExecutor(args.workers) as pool:
+        results = list(pool.map(run, *zip(*jobs, strict=True)))
+    meta = {"machine": platform.machine(), "cpus": os.cpu_count(),
+            "python": platform.python_version(),
+            "command": "python benchmarks/bench_env_estimates.py " + " ".join(argv or sys.argv[1:])}
+    for r in results:
+        r["summary"] = {k: summary(r["errors"][k]) for k in PARAM_NAMES}
+    args.out.mkdir(parents=True, exist_ok=True)
+    text = json.dumps({"meta": meta, "results": results}, indent=1)
+    tmp = args.out / "env_estimates.json.tmp"
+    tmp.write_text(text)
+    os.replace(tmp, args.out / "env_estimates.json")
+    md = table(results)
+    (args.out / "env_estimates.md").write_text(md)
+    print(md)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
