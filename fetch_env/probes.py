@@ -106,10 +106,15 @@ RELIABLE_HALF_WIDTH = 0.05  # a 95 % interval wider than +-5 % makes an outcome 
 # Computed on the 64 tuning foods with the "measure" probes, calibrated, with no added noise
 # and with 1 % noise (docs/data/validation/tuning_measure_noise0*.json), the larger of the
 # two, rounded up: g1 and tau1 need little beyond their own window-shift and noise parts, mu
-# 1.5 % (its noise interval misses the slide's stick-slip), the springs a tenth.
+# 2 % with noise (its envelope then reads noise peaks), the springs a tenth.
 PROBE_SYSTEMATIC_SD: dict[str, float] = {"K1": 0.14, "K2": 0.10, "B": 0.11, "g1": 0.010,
-                                         "tau1": 0.004, "mu": 0.015}
-ENVELOPE_QUANTILE = 0.95  # slip probe: quantile of |F_t| / F_n taken as mu
+                                         "tau1": 0.004, "mu": 0.02}
+# slip probe: quantile of |F_t| / F_n taken as mu where the plateau is lower.  Coulomb bounds
+# the ratio by mu and a stick-slipping piece reaches it only in its short slips, so a high
+# quantile: on the 64 tuning foods ("measure" probes) 0.95 / 0.99 / 1.0 gave mu's median
+# error 0.52 / 0.30 / 0.23 % and 95th percentile 7.0 / 5.2 / 5.2 %; 0.99, not the maximum,
+# so that sensor noise cannot set it.
+ENVELOPE_QUANTILE = 0.99
 # The slip probe is sampled at every physics step (run_probes; at 5 ms, 200 Hz gave
 # estimate_friction the 20 samples of a 0.15 s slide; at 100 Hz only the envelope could be
 # used).  Seeds 5000-5191, |mu error| median / 75th / 95th percentile / max, 5 ms step: 0.3 s
