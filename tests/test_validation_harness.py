@@ -68,3 +68,19 @@ def test_calibrate_returns_the_quantile_of_the_missing_sd() -> None:
     out = calibrate(recs, dict.fromkeys(PARAM_NAMES, 0.0))
     need = sorted(math.sqrt(max(m**2 - 0.01**2, 0.0)) for m in misses)
     assert_allclose(out["g1"], np.quantile(need, 0.95), rtol=1e-9)
+
+
+def test_readme_estimator_table_is_the_committed_json() -> None:
+    """The README's estimator table is what scripts/make_validation_page.py makes from the
+    committed reporting runs (regenerate it after a new run, never edit it by hand)."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "make_validation_page.py"
+    spec = importlib.util.spec_from_file_location("make_validation_page", path)
+    assert spec is not None and spec.loader is not None
+    page = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(page)
+    readme = page.README.read_text()
+    block = readme[readme.index(page.MARK_BEGIN) + len(page.MARK_BEGIN):
+                   readme.index(page.MARK_END)]
+    assert block.strip() == page.readme_table().strip()
