@@ -9,11 +9,28 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["EstimationError", "as_trace", "check_traces"]
+__all__ = ["EstimationError", "as_trace", "check_traces", "optional_real", "real"]
 
 
 class EstimationError(ValueError):
     """Raised when a trace cannot give an estimate (bad input or missing phase)."""
+
+
+def real(name: str, value: object) -> float:
+    """``value`` as a float, if it is a real number (int or float, numpy's too; not a bool,
+    text, complex, None or an array); else :class:`EstimationError` naming ``name``.
+    Finiteness and ranges are the caller's to check."""
+    if isinstance(value, bool | np.bool_) or not isinstance(
+            value, int | float | np.integer | np.floating):
+        shown = repr(value)
+        shown = shown if len(shown) <= 60 else shown[:57] + "..."
+        raise EstimationError(f"{name} must be a real number, got {shown}")
+    return float(value)
+
+
+def optional_real(name: str, value: object) -> float | None:
+    """:func:`real`, passing None through (an option left to be inferred)."""
+    return None if value is None else real(name, value)
 
 
 def as_trace(name: str, values: ArrayLike) -> NDArray[np.float64]:

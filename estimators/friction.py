@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.stats import t as student_t
 
-from estimators.errors import EstimationError, check_traces
+from estimators.errors import EstimationError, check_traces, real
 
 __all__ = ["FrictionEstimate", "estimate_friction"]
 
@@ -141,6 +141,10 @@ def estimate_friction(
         )
     valid = n_tot > max(0.05 * n_scale, min_normal)
     n = tt.size
+    if window is not None:
+        wv = real("window", window)
+        if not (math.isfinite(wv) and wv == int(wv)):
+            raise EstimationError(f"window must be a whole number of samples, got {window!r}")
     w = int(window) if window is not None else int(np.clip(n // 20, 5, 200))
     if w < 3 or w > n // 2:
         raise EstimationError(f"rolling window {w} samples is invalid for {n} samples")

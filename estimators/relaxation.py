@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq, curve_fit, least_squares
 from scipy.stats import t as student_t
 
-from estimators.errors import EstimationError, check_traces
+from estimators.errors import EstimationError, check_traces, optional_real, real
 from estimators.sls import (
     ClampGeometry,
     SLSParams,
@@ -211,6 +211,7 @@ def infer_kinematics(
         EstimationError: bad traces, ``theta`` never grows, no hold (``theta`` never plateaus),
             or too few ramp samples to read ``omega``.
     """
+    omega, theta_d = optional_real("omega", omega), optional_real("theta_d", theta_d)
     tt, tr = check_traces(t, min_samples=_MIN_SAMPLES, theta=theta)
     th = tr["theta"]
     # Largest angle, robust to single-sample glitches: the max of a 5-sample running median.
@@ -565,6 +566,9 @@ def estimate_from_hold(
         EstimationError: bad traces or settings, too short a hold, or a hold that does not
             relax (``fit_hold_relaxation``'s ``relaxes`` is False).
     """
+    theta_1, theta_d, omega, t_d, settle = (
+        real(name, v) for name, v in (("theta_1", theta_1), ("theta_d", theta_d),
+                                      ("omega", omega), ("t_d", t_d), ("settle", settle)))
     tt, traces = check_traces(t, M=M)
     m = traces["M"]
     for name, value in (("theta_d", theta_d), ("omega", omega)):
@@ -759,7 +763,7 @@ def estimate_full_fit(
         EstimationError: bad traces, no hold, no contact, a non-finite model or a solver failure.
     """
     tt, th, m = _validate(t, theta, M)
-    if not (np.isfinite(clamp_weight) and clamp_weight > 0.0):
+    if not (np.isfinite(real("clamp_weight", clamp_weight)) and clamp_weight > 0.0):
         raise EstimationError(f"clamp_weight must be finite and > 0, got {clamp_weight!r}")
     kin = infer_kinematics(tt, th, omega, theta_d)
     contact = detect_contact(tt, m, kin)

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_ivp
 
-from estimators.errors import EstimationError
+from estimators.errors import EstimationError, real
 
 __all__ = [
     "ClampGeometry",
@@ -63,6 +63,8 @@ class ClampGeometry:
     theta_0: float
 
     def __post_init__(self) -> None:
+        real("L", self.L)
+        real("theta_0", self.theta_0)
         if not (np.isfinite(self.L) and self.L > 0.0):
             raise EstimationError(f"lever arm L must be finite and > 0 m, got {self.L!r}")
         if not np.isfinite(self.theta_0):
@@ -85,11 +87,14 @@ class SLSParams:
 
     def __post_init__(self) -> None:
         for name in ("K1", "K2", "B"):
-            v = getattr(self, name)
+            v = real(f"SLS parameter {name}", getattr(self, name))
             if not (np.isfinite(v) and v >= 0.0):
                 raise EstimationError(f"SLS parameter {name} must be finite and >= 0, got {v!r}")
         if self.B == 0.0:
             raise EstimationError("SLS parameter B must be > 0 N s/m, got 0.0")
+        if self.K1 + self.K2 == 0.0:
+            raise EstimationError("SLS springs K1 + K2 must be > 0 N/m (g1 is undefined), "
+                                  "got K1 = K2 = 0")
 
     @property
     def g1(self) -> float:
@@ -112,11 +117,17 @@ class SLSParams:
         Args:
             K_instant: instantaneous stiffness ``K1 + K2`` (N/m), the scale playing the role of
                 ``E_0`` in ``E(t) = E_0 [1 - g1 (1 - exp(-t / tau1))]``.
-            g1: Prony weight in [0, 1).
+            g1: Prony weight in (0, 1); a food with g1 = 0 does not relax and has no Maxwell
+                arm, so no SLS (its stiffness is ``K1`` alone: :func:`steady_moment`).
             tau1: relaxation time, s (> 0).
         """
-        if not (0.0 <= g1 < 1.0):
-            raise EstimationError(f"Prony weight g1 must be in [0, 1), got {g1!r}")
+        K_instant = real("K_instant", K_instant)
+        g1 = real("g1", g1)
+        tau1 = real("tau1", tau1)
+        if not (0.0 < g1 < 1.0):
+            raise EstimationError(
+                f"Prony weight g1 must be in (0, 1), got {g1!r}"
+                + (" (g1 = 0 does not relax: no Maxwell arm, so no SLS)" if g1 == 0 else ""))
         if not (tau1 > 0.0 and np.isfinite(tau1)):
             raise EstimationError(f"Prony time tau1 must be finite and > 0 s, got {tau1!r}")
         k2 = g1 * K_instant
@@ -166,7 +177,10 @@ def steady_moment(
 
     ``params`` may be an :class:`SLSParams` or just ``K1`` (N/m).
     """
-    k1 = params.K1 if isinstance(params, SLSParams) else float(params)
+    k1 = params.K1 if isinstance(params, SLSParams) else real("K1", params)
+    for name, value in (("theta_1", theta_1), ("theta_d", theta_d)):
+        if not np.isfinite(real(name, value)):
+            raise EstimationError(f"{name} must be finite, got {value!r}")
     if theta_d <= theta_1:
         return 0.0
     L, th0 = geometry.L, geometry.theta_0
@@ -174,6 +188,8 @@ def steady_moment(
 
 
 def _check_clamp(geometry: ClampGeometry, theta_1: float, theta_d: float, omega: float) -> None:
+    for name, value in (("omega", omega), ("theta_d", theta_d), ("theta_1", theta_1)):
+        real(name, value)
     if not (np.isfinite(omega) and omega > 0.0):
         raise EstimationError(
             f"clamping velocity omega must be finite and > 0 rad/s, got {omega!r}"
@@ -393,6 +409,10 @@ def moment_trace(
         rtol: relative tolerance (``"ivp"`` only).
     """
     _check_clamp(geometry, theta_1, theta_d, omega)
+    if not np.isfinite(real("t_start", t_start)):
+        raise EstimationError(f"t_start must be finite, got {t_start!r}")
+    if isinstance(n_sub, bool) or not isinstance(n_sub, int | np.integer) or n_sub < 1:
+        raise EstimationError(f"n_sub must be an integer >= 1, got {n_sub!r}")
     tt = np.asarray(t, dtype=np.float64)
     if theta_d <= theta_1:
         return np.zeros_like(tt)

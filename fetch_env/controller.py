@@ -317,6 +317,11 @@ class FetchSimulator:
         if impratio is not None:
             require_finite("impratio", impratio)
             require(1 <= impratio <= 1e4, "impratio", impratio, "in [1, 1e4]")
+        require(isinstance(pieces, tuple | list) and len(pieces) > 0
+                and all(isinstance(p, Piece) for p in pieces), "pieces", pieces,
+                "a non-empty sequence of Piece")
+        require(geometry is None or isinstance(geometry, Geometry), "geometry", geometry,
+                "a Geometry or None")
         self.pieces = tuple(pieces)
         self.geometry = geometry or Geometry()
         self.record_hz = record_hz
@@ -360,9 +365,11 @@ class FetchSimulator:
         ``time_scale`` (relaxation only): run the hold quasi-statically time-scaled
         (:class:`TimeScale`); the trace is then sampled at every step of the scaled hold.
         """
-        require(experiment in EXPERIMENTS, "experiment", experiment, f"one of {EXPERIMENTS}")
-        action = action or FetchAction()
-        require(isinstance(action, FetchAction), "action", action, "a FetchAction")
+        require(isinstance(experiment, str) and experiment in EXPERIMENTS, "experiment",
+                experiment, f"one of {EXPERIMENTS}")
+        require(action is None or isinstance(action, FetchAction), "action", action,
+                "a FetchAction or None")
+        action = action if action is not None else FetchAction()
         if time_scale is not None:
             require(isinstance(time_scale, TimeScale), "time_scale", time_scale, "a TimeScale")
             require(experiment == "relaxation" or not time_scale.scaled, "time_scale",

@@ -604,12 +604,12 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
 
 # Named probe settings: "env" is what the environments run at every reset (cheap);
 # "measure" is what `food-fetch estimate` and the validation harness run: a 20 s hold, long
-# enough for the slowest foods of the space (tau1 10 s), and a 0.3 s slide (30 samples, so
-# estimate_friction's plateau is found instead of the ratio's envelope: on 32 tuning foods
-# mu's 95th percentile / max error went from 5.7 / 13 % to 4.8 / 5.4 %).  On 32 tuning foods it gave tau1's 95th percentile 18 %
-# against the 6 s hold's 28 %; a 1 ms relaxation step (a stiffer blade contact) and a
-# real-time 15 s hold at 2.5 ms were no better (tau1 95th percentiles 28 % and 30 %:
-# docs/estimator_validation.md).
+# enough for the slowest foods of the space (tau1 10 s; on 32 tuning foods tau1's 95th
+# percentile was 18 % against the 6 s hold's 28 %, while a 1 ms relaxation step and a
+# real-time 15 s hold at 2.5 ms were no better, 28 % and 30 %), and a 0.3 s slide, whose 30
+# samples let estimate_friction find its plateau instead of falling back on the ratio's
+# envelope (mu's median error on the 64 tuning foods 0.60 -> 0.52 %; its 95th percentile
+# did not improve, 5.9 -> 7.0 %, until the envelope's quantile was raised).
 CALIBRATION_FILE = Path(__file__).with_name("assets") / "probe_calibration.json"
 
 
