@@ -30,7 +30,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from estimators.errors import EstimationError
-from estimators.relaxation import HoldEstimate, estimate_from_hold
+from estimators.relaxation import (
+    ClampKinematics,
+    HoldEstimate,
+    _three_step_core,
+    estimate_from_hold,
+)
 from estimators.sls import ClampGeometry
 
 __all__ = ["INTERVAL_SCALE", "WINDOW_SHIFTS", "HoldWithIntervals", "hold_with_intervals",
@@ -77,25 +82,40 @@ def _lag1(r: np.ndarray) -> float:
     return float(np.clip((r[1:] @ r[:-1]) / den, 0.0, 0.95)) if den > 0 else 0.0
 
 
-def _noise_sd(est: HoldEstimate, t: np.ndarray, m: np.ndarray, t_start: float) -> dict[str, float]:
-    """Log-sd of each estimate from the hold fit's covariance, autocorrelation-inflated."""
+def _noise_sd(est: HoldEstimate, t: np.ndarray, m: np.ndarray, geometry: ClampGeometry,
+              theta_1: float, theta_d: float, omega: float, t_d: float, settle: float
+              ) -> dict[str, float]:
+    """Log-sd of each estimate from the hold fit's covariance (autocorrelation-inflated),
+    carried through the estimator by the delta method: a numerical Jacobian of
+    ``log(K1, K2, B, g1, tau1)`` with respect to the fit's ``(M_inf, A, lam)``."""
     hf = est.fit
+    t_start = t_d + settle
     sel = t > t_start
     s, y = t[sel] - t_start, m[sel]
     resid = y - (hf.M_inf + hf.A * np.exp(-hf.lam * s))
     rho = _lag1(resid)
-    inflate = math.sqrt((1 + rho) / (1 - rho))
-    cov = np.asarray(hf.cov) * inflate**2
+    cov = np.asarray(hf.cov) * (1 + rho) / (1 - rho)
     if not np.all(np.isfinite(cov)):
         return dict.fromkeys(_NAMES, math.inf)
-    m_d = hf.M_inf + hf.A
-    rel_minf = math.sqrt(max(cov[0, 0], 0.0)) / abs(hf.M_inf) if hf.M_inf else math.inf
-    rel_a = math.sqrt(max(cov[1, 1], 0.0)) / abs(hf.A) if hf.A else math.inf
-    rel_lam = math.sqrt(max(cov[2, 2], 0.0)) / hf.lam if hf.lam > 0 else math.inf
-    # g1 ~ A / M(t_d): d log g1 = (1 - g1) (d log A - d log M_inf) to first order
-    rel_g1 = (1 - min(est.g1, 0.999)) * math.hypot(rel_a, rel_minf) if m_d else math.inf
-    return {"K1": rel_minf, "K2": math.hypot(rel_a, rel_lam), "B": math.hypot(rel_a, rel_lam),
-            "g1": rel_g1, "tau1": rel_lam}
+    kin = ClampKinematics(omega=omega, theta_d=theta_d, t_start=t_d - theta_d / omega,
+                          t_d=t_d, theta_noise=0.0)
+
+    def logs(p: np.ndarray) -> np.ndarray:
+        m_inf, a, lam = (float(v) for v in p)
+        k1, k2, b = _three_step_core(hf, geometry, theta_1, kin, m_inf=m_inf,
+                                     a=a * math.exp(lam * settle), lam=lam)
+        return np.log([k1, k2, b, k2 / (k1 + k2), b / k2])
+
+    p0 = np.array([hf.M_inf, hf.A, hf.lam])
+    steps = 1e-3 * np.sqrt(np.maximum(np.diag(cov), 0.0)) + 1e-9 * np.abs(p0)
+    try:
+        f0 = logs(p0)
+        jac = np.column_stack([(logs(p0 + h * e) - f0) / h
+                               for h, e in zip(steps, np.eye(3), strict=True)])
+    except (EstimationError, ArithmeticError, ValueError):
+        return dict.fromkeys(_NAMES, math.inf)  # not identified near the fit: say so
+    var = np.einsum("ij,jk,ik->i", jac, cov, jac)
+    return {k: float(math.sqrt(max(v, 0.0))) for k, v in zip(_NAMES, var, strict=True)}
 
 
 def hold_with_intervals(
@@ -136,7 +156,7 @@ def hold_with_intervals(
                                                  settle=settle + head * span))
         except (EstimationError, ArithmeticError):
             continue  # a window too short to fit says nothing either way
-    noise = _noise_sd(est, tt, mm, t_d + settle)
+    noise = _noise_sd(est, tt, mm, geometry, theta_1, theta_d, omega, t_d, settle)
     model = {}
     for k in _NAMES:
         v0 = getattr(est, k)
