@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.stats import t as student_t
 
-from estimators.errors import EstimationError, check_traces, real
+from estimators.errors import EstimationError, check_traces, optional_real, real
 
 __all__ = ["FrictionEstimate", "estimate_friction"]
 
@@ -111,8 +111,12 @@ def estimate_friction(
 
     Raises:
         EstimationError: bad traces (too short, mismatched, NaN/inf, unsorted time), normal force
-            ~0 where the slide should be, or no steady plateau of the ratio.
+            ~0 where the slide should be, no steady plateau of the ratio, an option that is not
+            a real number, or a ``window`` that is not a whole number of samples in
+            ``[3, len/2]``.
     """
+    slide_start = optional_real("slide_start", slide_start)
+    stability, min_normal = real("stability", stability), real("min_normal", min_normal)
     tt, tr = check_traces(
         t,
         min_samples=_MIN_SAMPLES,

@@ -284,8 +284,9 @@ def detect_contact(
 
     Raises:
         EstimationError: if the moment never rises above the noise (no contact) or first rises
-            only after the clamp has stopped.
+            only after the clamp has stopped, or a ``threshold`` that is not a real number.
     """
+    threshold = optional_real("threshold", threshold)
     tt = np.asarray(t, dtype=np.float64)
     m = np.asarray(M, dtype=np.float64)
     hold = tt > kin.t_d
@@ -365,8 +366,9 @@ def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float) -> HoldFit:
     or the fit does not converge.
 
     Raises:
-        EstimationError: fewer than 10 hold samples.
+        EstimationError: fewer than 10 hold samples, or a ``t_d`` that is not a real number.
     """
+    t_d = real("t_d", t_d)
     tt = np.asarray(t, dtype=np.float64)
     m = np.asarray(M, dtype=np.float64)
     hold = tt > t_d
@@ -763,6 +765,8 @@ def estimate_full_fit(
         EstimationError: bad traces, no hold, no contact, a non-finite model or a solver failure.
     """
     tt, th, m = _validate(t, theta, M)
+    if not isinstance(fit_theta_1, bool | np.bool_):
+        raise EstimationError(f"fit_theta_1 must be True or False, got {fit_theta_1!r}")
     if not (np.isfinite(real("clamp_weight", clamp_weight)) and clamp_weight > 0.0):
         raise EstimationError(f"clamp_weight must be finite and > 0, got {clamp_weight!r}")
     kin = infer_kinematics(tt, th, omega, theta_d)

@@ -75,10 +75,13 @@ class ClampGeometry:
 class SLSParams:
     """Standard linear solid: ``K1`` in parallel with (``K2`` in series with ``B``).
 
+    ``K2 = B = 0`` is a food without a Maxwell arm: a spring ``K1`` alone, which never relaxes
+    (``g1 = 0``, what :meth:`from_prony` gives for a Prony weight of 0).
+
     Attributes:
-        K1: equilibrium spring, N/m.
-        K2: Maxwell-arm spring, N/m.
-        B: Maxwell-arm dashpot, N s/m.
+        K1: equilibrium spring, N/m (>= 0).
+        K2: Maxwell-arm spring, N/m (>= 0; ``K1 + K2 > 0``, or ``g1`` would be 0/0).
+        B: Maxwell-arm dashpot, N s/m (> 0; 0 only with ``K2 = 0``).
     """
 
     K1: float
@@ -90,8 +93,9 @@ class SLSParams:
             v = real(f"SLS parameter {name}", getattr(self, name))
             if not (np.isfinite(v) and v >= 0.0):
                 raise EstimationError(f"SLS parameter {name} must be finite and >= 0, got {v!r}")
-        if self.B == 0.0:
-            raise EstimationError("SLS parameter B must be > 0 N s/m, got 0.0")
+        if self.B == 0.0 and self.K2 > 0.0:
+            raise EstimationError("SLS parameter B must be > 0 N s/m when K2 > 0 (only a "
+                                  "food without a Maxwell arm, K2 = 0, has B = 0), got 0.0")
         if self.K1 + self.K2 == 0.0:
             raise EstimationError("SLS springs K1 + K2 must be > 0 N/m (g1 is undefined), "
                                   "got K1 = K2 = 0")
@@ -103,8 +107,15 @@ class SLSParams:
 
     @property
     def tau1(self) -> float:
-        """Prony (Maxwell-arm) relaxation time ``B / K2``, s."""
+        """Prony (Maxwell-arm) relaxation time ``B / K2``, s; infinite when ``K2 = 0`` (nothing
+        relaxes)."""
         return self.B / self.K2 if self.K2 > 0.0 else np.inf
+
+    @property
+    def rate(self) -> float:
+        """Maxwell-arm rate ``K2 / B = 1 / tau1``, 1/s; 0 without a Maxwell arm (``B = 0``),
+        where the arm carries no force whatever its rate."""
+        return self.K2 / self.B if self.B > 0.0 else 0.0
 
     def to_prony(self) -> tuple[float, float]:
         """Return the one-term Prony series ``(g1, tau1)`` (dimensionless, s)."""
@@ -117,17 +128,18 @@ class SLSParams:
         Args:
             K_instant: instantaneous stiffness ``K1 + K2`` (N/m), the scale playing the role of
                 ``E_0`` in ``E(t) = E_0 [1 - g1 (1 - exp(-t / tau1))]``.
-            g1: Prony weight in (0, 1); a food with g1 = 0 does not relax and has no Maxwell
-                arm, so no SLS (its stiffness is ``K1`` alone: :func:`steady_moment`).
-            tau1: relaxation time, s (> 0).
+            g1: Prony weight in [0, 1); 0 is a food that does not relax, giving
+                ``K2 = B = 0`` (no Maxwell arm; :attr:`tau1` is then infinite).
+            tau1: relaxation time, s (finite, > 0; irrelevant when ``g1 = 0``).
         """
         K_instant = real("K_instant", K_instant)
         g1 = real("g1", g1)
         tau1 = real("tau1", tau1)
-        if not (0.0 < g1 < 1.0):
+        if not (np.isfinite(K_instant) and K_instant > 0.0):
             raise EstimationError(
-                f"Prony weight g1 must be in (0, 1), got {g1!r}"
-                + (" (g1 = 0 does not relax: no Maxwell arm, so no SLS)" if g1 == 0 else ""))
+                f"instantaneous stiffness K_instant must be finite and > 0 N/m, got {K_instant!r}")
+        if not (0.0 <= g1 < 1.0):
+            raise EstimationError(f"Prony weight g1 must be in [0, 1), got {g1!r}")
         if not (tau1 > 0.0 and np.isfinite(tau1)):
             raise EstimationError(f"Prony time tau1 must be finite and > 0 s, got {tau1!r}")
         k2 = g1 * K_instant
@@ -164,8 +176,10 @@ def eq4_coefficients(
     L = geometry.L
     phi = geometry.theta_0 - th
     a = np.cos(phi) / L
-    b = (bb * np.sin(phi) * thd + k2 * np.cos(phi)) / (bb * L)
     c = (k1 + k2) * L * np.cos(phi)
+    if bb == 0.0:  # no Maxwell arm (K2 = B = 0): eq. 1 is F_n' = K1 x'
+        return a, np.sin(phi) * thd / L, c * thd
+    b = (bb * np.sin(phi) * thd + k2 * np.cos(phi)) / (bb * L)
     rhs = c * thd + (k1 * k2 / bb) * displacement(th, geometry, theta_1)
     return a, b, rhs
 
@@ -289,7 +303,7 @@ def _moment_quadrature(
     ``rhs`` eq. 4's right-hand side; each step integral uses ``n_sub`` Simpson panels. Stepping
     (rather than one global ``exp(lam s)`` factor) keeps it free of overflow.
     """
-    lam = params.K2 / params.B
+    lam = params.rate
     L, th0 = geometry.L, geometry.theta_0
     t1 = t_start + theta_1 / omega
     td = t_start + theta_d / omega
@@ -419,9 +433,7 @@ def moment_trace(
     if theta_1 < 0.0:
         raise EstimationError(f"contact angle theta_1 must be >= 0 rad, got {theta_1!r}")
     if method == "closed":
-        S, V = moment_components(
-            tt, geometry, theta_1, theta_d, omega, params.K2 / params.B, t_start
-        )
+        S, V = moment_components(tt, geometry, theta_1, theta_d, omega, params.rate, t_start)
         return params.K1 * S + params.K2 * V
     if method == "quadrature":
         return _moment_quadrature(tt, params, geometry, theta_1, theta_d, omega, t_start, n_sub)
