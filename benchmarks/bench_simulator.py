@@ -117,7 +117,7 @@ if __name__ == "__main__":
     # chaotic: any change to the simulator moves one seed's figure by up to 2x.  So the
     # diced figure is the median over several seeded mixes, one run each.
     # The default (5 ms step, the multi-piece impratio 100), then in the same sitting the
-    # impratio 1000 multi-piece scenes had before session 17 (the VM's speed drifts by a third
+    # impratio 1000 that multi-piece scenes ran at in 0.1.0 (the VM's speed drifts by a third
     # from day to day: compare within one run), then the opt-in 10 ms step
     # (FetchSimulator(timestep=0.01), the env's fetch_timestep), which loses outcome agreement
     # (benchmarks/bench_step_size.py).

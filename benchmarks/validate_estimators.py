@@ -27,10 +27,12 @@ import json
 import math
 import os
 import platform
+import signal
 import sys
 import time
 from collections.abc import Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any
 
@@ -353,23 +355,63 @@ def main(argv: list[str] | None = None) -> int:
             "command": "python benchmarks/validate_estimators.py " + " ".join(argv or sys.argv[1:])}
     records = list(done.values())
     t0 = time.perf_counter()
-    with jsonl.open("a") as log, ProcessPoolExecutor(args.workers) as pool:
-        futures = [pool.submit(measure, f, args.preset, args.noise, 7919 * f.index + 1,
-                               calibrated) for f in foods]
-        for i, fut in enumerate(as_completed(futures), 1):
-            rec = fut.result()
-            records.append(rec)
-            log.write(json.dumps(rec, default=float) + "\n")
-            log.flush()
-            e = rec.get("error", {})
-            print(f"[{i}/{len(foods)}] food {rec['food']['index']} {rec['food']['shape']} "
-                  + (rec["crash"] if "crash" in rec else " ".join(
-                      f"{k} {100 * e[k]:+.2f}%" for k in ("g1", "tau1", "mu", "K1"))),
-                  flush=True)
+    stopped = _run_foods(foods, args, calibrated, jsonl, records)
     meta["wall_s"] = time.perf_counter() - t0
+    if stopped:
+        meta["stopped"] = stopped
+        if records:
+            write_outputs(args.out, name, records, meta)
+        print(f"validate_estimators: {stopped}; {len(records)} of {args.n} foods finished, kept "
+              f"in {jsonl} (rerun with --resume to finish)", file=sys.stderr)
+        return 130 if "interrupted" in stopped else 1
     summary = write_outputs(args.out, name, records, meta)
     print(table(summary, name))
     return 0
+
+
+def _raise_interrupt(signum: int, _frame: Any) -> None:
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
+def _run_foods(foods: list[Food], args: argparse.Namespace, calibrated: bool, jsonl: Path,
+               records: list[dict[str, Any]]) -> str:
+    """Measure ``foods`` on a process pool, appending each record to ``jsonl`` as it
+    finishes.  Returns "" when all finished, else why it stopped: Ctrl-C, SIGTERM or SIGHUP
+    (handled alike), or a worker that died (the pool breaks instead of hanging)."""
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, _raise_interrupt)
+    pool = ProcessPoolExecutor(args.workers, initializer=_worker_signals)
+    try:
+        with jsonl.open("a") as log:
+            futures = [pool.submit(measure, f, args.preset, args.noise, 7919 * f.index + 1,
+                                   calibrated) for f in foods]
+            for i, fut in enumerate(as_completed(futures), 1):
+                rec = fut.result()
+                records.append(rec)
+                log.write(json.dumps(rec, default=float) + "\n")
+                log.flush()
+                e = rec.get("error", {})
+                print(f"[{i}/{len(foods)}] food {rec['food']['index']} {rec['food']['shape']} "
+                      + (rec["crash"] if "crash" in rec else " ".join(
+                          f"{k} {100 * e[k]:+.2f}%" for k in ("g1", "tau1", "mu", "K1"))),
+                      flush=True)
+    except KeyboardInterrupt as exc:
+        return f"interrupted ({exc.args[0] if exc.args else 'SIGINT'})"
+    except BrokenProcessPool:
+        return "a worker process died"
+    finally:
+        workers = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in workers:
+            proc.terminate()  # a worker mid-food would otherwise run on after the stop
+    return ""
+
+
+def _worker_signals() -> None:
+    """Workers stop quietly on SIGTERM and leave Ctrl-C to the main process."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 if __name__ == "__main__":

@@ -228,25 +228,19 @@ _COMMON_DOC = """
     crushed a soft die (``benchmarks/bench_step_size.py --twins``, ``docs/env_results.md``).
 
     ## Version history
-    - v0: first release (one fetch per episode, reset probes, model/oracle/none estimator).
-      The model's estimates are calibrated by default (``probe_calibrated``; False gives
-      the uncalibrated estimates of earlier v0 releases).
-      Revised in place before any tagged release: the relaxation probe's contact stiffened
-      with the food and g1, tau1 from the hold (session 9); a 6 s time-scaled relaxation hold
-      and a 0.15 s slide (session 11, was a 3 s real-time hold and a 0.3 s slide); the hold's
-      steps log-spaced, its impratio 30 and the slip probe at a 10 ms step (session 12).
-      The observations of a seed changed with each (``probe_hold=3, probe_time_scale=1,
-      probe_time_growth=0`` gives session 9's relaxation hold back; the probes' scene
-      settings are ``ProbeConfig`` fields, not kwargs).  The ``fetch_timestep`` kwarg was
-      added in session 14 (its default is the base scene's 5 ms step: nothing changed).
-      Session 16: a piece that passed through a blade or the plate (a very soft piece
-      squeezed hard: ``info["passed_through"]``) is no longer counted fetched and takes the
-      whole deformation penalty (it had been scored by its meaningless LE, and once counted
-      fetched while cut through by a blade).
-      Session 17: the fetch in multi-piece scenes (Row, TwoRows, Diced) runs at friction
-      impratio 100 instead of 1000 (``fetch_env.scene.MULTI_PIECE_IMPRATIO``; 1.3x faster
-      over 40 diced mixes, outcomes at the chaos floor); ``fetch_impratio=1000`` gives the
-      earlier physics back.  Block episodes and every probe are unchanged.
+    - v0 (0.2.0): the model's estimates are calibrated (``probe_calibrated``; False gives the
+      0.1.0 estimates but for mu, now the slip ratio's 0.99 quantile where its plateau is
+      lower, was 0.95); ``info["probe_calibration"]``.
+    - v0 (0.1.0): first release (one fetch per episode, reset probes, model/oracle/none
+      estimator): the relaxation probe's contact stiffened with the food, g1 and tau1 from
+      the hold, a 6 s time-scaled relaxation hold with log-spaced steps at impratio 30
+      (``probe_hold=3, probe_time_scale=1, probe_time_growth=0`` gives a 3 s real-time hold),
+      a 0.15 s slide at a 10 ms step; the ``fetch_timestep`` kwarg; a piece that passed
+      through a blade or the plate (``info["passed_through"]``) is never counted fetched
+      and takes the whole deformation penalty; multi-piece scenes (Row, TwoRows, Diced)
+      fetch at friction impratio 100 (``fetch_env.scene.MULTI_PIECE_IMPRATIO``; 1.3x faster
+      over 40 diced mixes with outcomes at the chaos floor; ``fetch_impratio=1000`` gives
+      1000).
 """
 
 

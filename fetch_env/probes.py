@@ -29,10 +29,10 @@ quasi-statically time-scaled past its first ``HOLD_SETTLE``
 (:class:`fetch_env.controller.TimeScale`): each step stands for at least 8 physical steps
 and at least 5 % of the hold's elapsed time, so the samples are log-spaced, as a relaxation
 test records them, and the 6 s cost ~60 steps past the first 0.25 s.  Three settings make the
-probes cheap (session 12; on seeds 5000-5191, |error| median / 75th / 95th percentile, and
+probes cheap (on seeds 5000-5191, |error| median / 75th / 95th percentile, and
 the probes' wall time per reset on this project's 2-core VM):
 
-* session 11's probes (a constant 8x hold, impratio 1000, slip at 5 ms): mu 0.1 / 1.0 /
+* without them (a constant 8x hold, impratio 1000, slip at 5 ms): mu 0.1 / 1.0 /
   4.9 %, g_1 2.4 / 5.1 / 10.1 %, tau_1 4.9 / 9.7 / 25 %; 244 ms;
 * ``relaxation_impratio`` 30 (impratio sets how stiff friction is against the normal force;
   at one held state MuJoCo's Newton solver took 12-13 iterations a step at 1000, 9-10 at
@@ -90,8 +90,8 @@ HOLD_SKIP = 0.1  # [s] start of the relaxation hold left out of the fit (servo c
 # [s] start of the hold left out of the hold-only fit of g1 and tau1: a round piece that rocks
 # as the blades close is still settling into the clamp (its moment rising, then falling faster
 # than the material relaxes) up to ~0.25 s after t_d.  On seeds 5000-5063, 0.2 / 0.25 / 0.3 s
-# gave g1 median errors of 6.1 / 5.5 / 5.3 % and 75th percentiles of 12.8 / 12.3 / 13.1 %
-# (session 8); for tau1 on seeds 5000-5127 (session 9), 0.1 / 0.25 / 0.5 / 0.75 s gave
+# gave g1 median errors of 6.1 / 5.5 / 5.3 % and 75th percentiles of 12.8 / 12.3 / 13.1 %;
+# for tau1 on seeds 5000-5127, 0.1 / 0.25 / 0.5 / 0.75 s gave
 # medians of 6.5 / 5.9 / 6.0 / 7.2 % and 75th percentiles of 13.2 / 11.6 / 11.8 / 15.3 %.
 HOLD_SETTLE = 0.25
 CLAMP_WEIGHT = 0.3  # full fit: clamp residuals against the hold (docs/estimators_results.md)
@@ -119,8 +119,8 @@ ENVELOPE_QUANTILE = 0.99
 # estimate_friction the 20 samples of a 0.15 s slide; at 100 Hz only the envelope could be
 # used).  Seeds 5000-5191, |mu error| median / 75th / 95th percentile / max, 5 ms step: 0.3 s
 # slide at 100 Hz 0.2 / 1.3 / 6.6 / 28 %; 0.2 s, 100 Hz 0.2 / 1.4 / 5.6 / 48 %; 0.15 s,
-# 100 Hz 0.2 / 1.3 / 7.2 / 34 %; 0.15 s, 200 Hz 0.1 / 1.0 / 4.9 / 24 % (session 11); at the
-# 10 ms step, every step (100 Hz): 0.1 / 1.2 / 4.6 / 13 % (session 12).
+# 100 Hz 0.2 / 1.3 / 7.2 / 34 %; 0.15 s, 200 Hz 0.1 / 1.0 / 4.9 / 24 %; at the
+# 10 ms step, every step (100 Hz): 0.1 / 1.2 / 4.6 / 13 %.
 
 
 @dataclass(frozen=True)
@@ -277,7 +277,7 @@ def elastic_stiffness(piece: Piece, config: ProbeConfig,
                                material=dataclasses.replace(piece.material, g1=0.0))
     sim = FetchSimulator((twin,), geometry, impratio=config.relaxation_impratio,
                          timestep=config.relaxation_timestep)
-    theta_d = _probe_angle(sim, config.strain, "relaxation")
+    theta_d = probe_angle(sim, config.strain, "relaxation")
     theta_c = first_contact_angle(sim.scene_for("relaxation"))[0]
     hold = 0.5
     res = sim.run("relaxation", FetchAction(theta_d=theta_d, omega=config.omega, hold=hold,
@@ -340,9 +340,6 @@ def probe_angle(sim: FetchSimulator, strain: float, experiment: str) -> float:
     theta = theta_c + strain * half_width / depth
     closed = getattr(scene.pose, "theta_closed", math.inf)
     return float(min(theta, 0.9 * closed))
-
-
-_probe_angle = probe_angle
 
 
 def _mean_moment(tr: dict[str, np.ndarray]) -> np.ndarray:
@@ -508,7 +505,7 @@ def _relaxation_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | No
     """Run the relaxation probe on ``piece`` and put its estimates into ``out``."""
     sim = FetchSimulator((piece,), geometry, impratio=config.relaxation_impratio,
                          timestep=config.relaxation_timestep)
-    theta_d = _probe_angle(sim, config.strain, "relaxation")
+    theta_d = probe_angle(sim, config.strain, "relaxation")
     action = FetchAction(theta_d=theta_d, omega=config.omega, hold=config.hold,
                          settle=config.settle)
     res = sim.run("relaxation", action,
@@ -534,7 +531,7 @@ def _slip_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | None, no
     # every step (and at least the simulator's 100 Hz)
     sim = FetchSimulator((piece,), geometry, record_hz=max(100.0, 1.0 / config.slip_timestep),
                          timestep=config.slip_timestep)
-    theta_d = _probe_angle(sim, config.slip_strain, "slip")
+    theta_d = probe_angle(sim, config.slip_strain, "slip")
     action = FetchAction(theta_d=theta_d, omega=config.slip_omega, hold=config.slip_hold,
                          settle=config.settle, slide_distance=config.slide_distance,
                          slide_time=config.slide_time)

@@ -5,7 +5,7 @@ blades' contact force) is a dozen numpy calls on a few hundred numbers.  Run bet
 ``mj_step`` calls they cost far more than their arithmetic (numpy's per-call cost, from
 caches the step has just evicted): in a single-cube fetch they added ~100 us to each ~400 us
 step (the fetch's wall time over its own ``mj_step`` time was 1.31, and 1.13 with them
-stubbed out; session 16).  So the loop only copies each sample's raw state (a few numpy
+stubbed out).  So the loop only copies each sample's raw state (a few numpy
 calls), and the meters run over a chunk of samples at once.
 """
 

@@ -296,7 +296,7 @@ def contact_solref(timeconst: float, timestep: float) -> list[float]:
     stiffness ``1 / tc**2`` and damping ``2 / tc`` (MuJoCo's own conversion), which
     ``refsafe`` leaves as authored (measured: identical probe estimates with it disabled).
     Even so, the contact's compliance under ``discrete`` grows with the step
-    (``docs/env_results.md``, "Session 10").
+    (``docs/env_results.md``).
     """
     if timeconst >= 2 * timestep:
         return [timeconst, 1.0]

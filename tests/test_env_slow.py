@@ -43,22 +43,22 @@ def _summary(e: np.ndarray) -> tuple[float, float, float]:
     return float(ok.mean()), float(np.median(np.abs(e[ok]))), float(np.abs(e[ok]).max())
 
 
-# Measured on HELD_BACK, session 12's default probes (the 6 s hold's scaled steps log-spaced,
-# impratio 30 in the relaxation probe, the slip probe at a 10 ms step; chosen on seeds
-# 5000-5191, measured here once after):
+# Measured on HELD_BACK, uncalibrated (probe_calibrated=False), the default probes (the 6 s
+# hold's scaled steps log-spaced, impratio 30 in the relaxation probe, the slip probe at a
+# 10 ms step; chosen on seeds 5000-5191, measured here once after):
 #   mu:   64 of 64; median 0.1 %, 75th percentile 1.3 %, 95th 6.7 %; 91 % within 4 %.
 #   g1:   64 of 64; median 3.5 %, 75th percentile 5.8 %, 95th 10.8 %.
 #   tau1: 64 of 64; median 3.5 %, 75th percentile 7.7 %, 95th 15.7 %.
 #   K1, K2, B: std of log(model / oracle) 0.21 / 0.23 / 0.25.
-# Session 11's probes (a 6 s relaxation hold time-scaled 8x, a 0.15 s slide sampled at
-# 200 Hz):
+# With a constant time scale instead (a 6 s relaxation hold time-scaled 8x, a 0.15 s slide
+# sampled at 200 Hz):
 #   mu:   64 of 64; median 0.2 %, 75th percentile 0.9 %, 95th 3.2 %; 95 % within 4 %.
 #   g1:   64 of 64; median 2.5 %, 75th percentile 4.5 %, 95th 8.3 %.
 #   tau1: 64 of 64; median 4.0 %, 75th percentile 9.7 %, 95th 28 %.
 #   K1, K2, B: std of log(model / oracle) 0.21 / 0.23 / 0.25.
 # Measured on HELD_BACK (64 sampled Block scenes), default probes (probe_hold 3 s), K1, K2, B,
 # g1 and tau1 from the hold alone (probes.HOLD_SETTLE) and the relaxation probe's contact
-# stiffened with the food (controller.relaxation_contact_timeconst), both session 9; relative error
+# stiffened with the food (controller.relaxation_contact_timeconst); relative error
 # |model / oracle - 1|:
 #   mu:   identified 64 of 64; median 0.5 %, 75th percentile 1.4 %, 95th 9.5 % (max 18 %: a
 #         soft piece that stick-slips); 88 % of scenes within 4 %.
@@ -66,12 +66,12 @@ def _summary(e: np.ndarray) -> tuple[float, float, float]:
 #   tau1: identified 64 of 64; median 6.0 %, 75th percentile 11.8 %, 95th 33 % (max 50 %).
 #   K1, K2, B against the nominal stiffness: std of log(model / oracle) 0.22 / 0.24 / 0.29
 #         (all from the hold; 0.52 / 0.52 / 0.55 with K1 from the full fit).
-# Session 8 (10 ms contact, tau1 from the full fit): g1 6.2 / 13.4 / 23 %, tau1 13.1 / 28.2 /
+# With a 10 ms contact and tau1 from the full fit: g1 6.2 / 13.4 / 23 %, tau1 13.1 / 28.2 /
 # 54 %, 63 of 64 identified; with the stiffened contact alone: g1 2.3 / 4.1 / 12 %, tau1 10.8 /
 # 18.6 / 54 %.  Before g1 came from the hold (04b99fa): g1 11.2 % / 21.6 %.  The bars: mu's as
 # set on the first 16 scenes, its "max" read as the 95th percentile (the largest of 16
 # samples estimates about that quantile, the largest of 64 about the 98th); g1's and tau1's
-# tightened to session 9's figures with about 2x / 1.7x room, so that losing either change
+# set at the stiffened-contact figures with about 2x / 1.7x room, so that losing either change
 # fails.  probe_hold=0.3 (the fast probes): mu as above; g1 / tau1 identified on < 50 %
 # (docs/env_results.md).
 
@@ -95,9 +95,8 @@ def test_default_probe_estimates_agree_with_the_oracle_on_held_back_seeds() -> N
     # K1, K2, B are compared with a nominal stiffness (no contact mechanics, no Poisson
     # confinement): a common factor is allowed; the scatter about it is the shapes' contact.
     # Measured std of log(model/oracle): K1 0.28, K2 0.57, B 0.63 on the first 16 scenes
-    # (g1 from the full fit), 0.53 / 0.57 / 0.46 on the 64 (session 8), 0.22 / 0.24 / 0.29
-    # with session 9's probes (everything from the hold of a stiff-contact clamp); the bar,
-    # 0.7 until session 9, is 0.4.
+    # (g1 from the full fit), 0.53 / 0.57 / 0.46 on the 64 with a 10 ms contact, 0.22 / 0.24 / 0.29
+    # with everything from the hold of a stiff-contact clamp; the bar is 0.4.
     for k in ("K1", "K2", "B"):
         ratio = 1.0 + errs[k][np.isfinite(errs[k])]
         assert np.std(np.log(ratio)) < 0.4, f"{k} ratios {ratio}"
@@ -112,7 +111,7 @@ def test_mu_within_4_percent_on_most_held_back_seeds() -> None:
 # tau1's bars: median 10 %, 75th percentile 20 % (the estimators issue's 13 % median, measured
 # on simulated traces, with room to spare).  The hold is short of the slowest foods' tau1 (up
 # to 6 s against a 3 s hold), and a stiff cube's held contact chatters, so tau1's errors stay
-# wider than g1's.  Until session 9 tau1 came from the full fit, misled where the clamp does
+# wider than g1's.  From the full fit instead, tau1 was misled where the clamp does
 # not rise as an SLS (round pieces rocking as the blades close), and MuJoCo's 10 ms contact
 # was a spring in series with stiff pieces: the median sat at 13.1 % (a strict xfail on a
 # 13 % bar) and the 75th percentile at 28 %.

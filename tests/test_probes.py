@@ -222,9 +222,9 @@ def test_induced_slip_force_ratio_is_coulomb_mu(mu: float) -> None:
         np.testing.assert_allclose(ratio.mean(), mu, rtol=0.02)
 
 
-# The probes with session 9-10's 3 s real-time relaxation hold at the base scene's impratio
+# The probes with a 3 s real-time relaxation hold at the base scene's impratio
 # (1000), which the stiff-piece figures below were measured with.  (hold_time_scale=1 alone
-# no longer gives it: since session 12 the scaled steps also grow with the hold, and the
+# no longer gives it: the scaled steps also grow with the hold, and the
 # relaxation probe runs at impratio 30.)
 REAL_TIME_PROBES = ProbeConfig(hold=3.0, hold_time_scale=1.0, hold_time_growth=0.0,
                                relaxation_impratio=1000.0)
@@ -238,7 +238,7 @@ def hold_relaxation() -> tuple[float, float]:
     The piece is held-back seed 90000's (3.9 MPa, 10.5 mm), where the env's g1 estimate
     came out low; the reference is 0.1 s into the hold, past the servo's catch-up.  The
     hold is the 3 s real-time one the figures below were measured with (the env's default
-    became a 6 s time-scaled hold in session 11).
+    is now a 6 s time-scaled hold).
     """
     material = STIFF_SPHERE[0].material
     outcome = run_probes(STIFF_SPHERE, REAL_TIME_PROBES, keep_traces=True)
@@ -288,13 +288,13 @@ def test_a_stalled_relaxation_probe_is_estimated_at_the_angle_it_stalled_at() ->
     reset relaxation probe a little below the last command it was given (the blades' angle
     when the load passed the stall moment).  The estimators must take that stalled angle as
     theta_d (the final command), not the largest command: with the largest one the hold never
-    reached theta_d and neither estimator found a hold (measured, session 9).
+    reached theta_d and neither estimator found a hold (measured).
 
     Run with the real-time 3 s hold the figures were measured with: this stalled stiff cube is
     where the env's default time-scaled hold (6 s, 8x) does worst (g1 +29 %, tau1 +108 %,
     against +21 % / -32 % in real time): its chattering contact creeps, and MuJoCo's
-    soft-contact creep is a rate the time scaling does not scale (docs/env_results.md,
-    session 11)."""
+    soft-contact creep is a rate the time scaling does not scale
+    (docs/env_results.md)."""
     material = Material(young=3212244.0627809814, poisson=0.4377864883888628,
                         density=1106.5149542573067, g1=0.21149751227192837,
                         tau1=2.548873360971311, mu=0.5734666394557012)
