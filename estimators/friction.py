@@ -117,6 +117,48 @@ def estimate_friction(
     """
     slide_start = optional_real("slide_start", slide_start)
     stability, min_normal = real("stability", stability), real("min_normal", min_normal)
+    forces = _slide_forces(
+        t, normal_left, tangential_left, normal_right, tangential_right, slide_start
+    )
+    valid, ratio, n_scale = _contact_ratio(forces, min_normal)
+    w = _window_length(window, forces.t.size)
+    sigma, level, noise_floor = _ratio_noise(ratio, valid, n_scale)
+    good = valid & ~_spikes(ratio, valid, sigma, level)
+    mean_w, sd_w, full_w = _window_stats(ratio, valid, good, w)
+    # Within-window noise: 2nd differences under-read correlated noise, so also use the median
+    # rolling sd (plateaus -- static and sliding -- fill most of a run).
+    if full_w.any():
+        noise_floor = max(noise_floor, float(np.median(sd_w[full_w])))
+    steady_w = full_w & (sd_w <= stability * noise_floor)
+    a, b = _highest_plateau(steady_w, mean_w, full_w, w, noise_floor, stability)
+    i0, i1 = _trim_onset(ratio, good, a, b, w)
+    sel = np.arange(i0, i1)[good[i0:i1]]
+    _reject_drift(forces.t[sel], ratio[sel])
+    return _coulomb_estimate(forces, sel, (float(forces.t[i0]), float(forces.t[i1 - 1])), w)
+
+
+@dataclass(frozen=True)
+class _SlideForces:
+    """Contact-force magnitudes (N) from the slide start on, and both half-spoons' totals."""
+
+    t: NDArray[np.float64]
+    normal_left: NDArray[np.float64]
+    tangential_left: NDArray[np.float64]
+    normal_right: NDArray[np.float64]
+    tangential_right: NDArray[np.float64]
+    normal: NDArray[np.float64]
+    tangential: NDArray[np.float64]
+
+
+def _slide_forces(
+    t: ArrayLike,
+    normal_left: ArrayLike,
+    tangential_left: ArrayLike,
+    normal_right: ArrayLike,
+    tangential_right: ArrayLike,
+    slide_start: float | None,
+) -> _SlideForces:
+    """Checked force magnitudes, cut to ``t >= slide_start`` (signs carry no information)."""
     tt, tr = check_traces(
         t,
         min_samples=_MIN_SAMPLES,
@@ -135,8 +177,18 @@ def estimate_friction(
                 f"samples, at least {_MIN_SAMPLES} are needed"
             )
         tt, nl, tl, nr, tgr = tt[keep], nl[keep], tl[keep], nr[keep], tgr[keep]
-    n_tot = nl + nr
-    t_tot = tl + tgr
+    return _SlideForces(tt, nl, tl, nr, tgr, nl + nr, tl + tgr)
+
+
+def _contact_ratio(
+    forces: _SlideForces, min_normal: float
+) -> tuple[NDArray[np.bool_], NDArray[np.float64], float]:
+    """The samples in contact, the combined ratio ``T/N`` (NaN elsewhere) and the largest N.
+
+    A sample is in contact when its total normal force exceeds 5 % of the largest (and
+    ``min_normal``): near-zero N would make the ratio noise.
+    """
+    n_tot, t_tot = forces.normal, forces.tangential
     n_scale = float(np.max(n_tot))
     if not n_scale > min_normal:
         raise EstimationError(
@@ -144,7 +196,12 @@ def estimate_friction(
             f"(<= min_normal={min_normal:.3g} N)"
         )
     valid = n_tot > max(0.05 * n_scale, min_normal)
-    n = tt.size
+    ratio = np.where(valid, t_tot / np.where(valid, n_tot, 1.0), np.nan)
+    return valid, ratio, n_scale
+
+
+def _window_length(window: int | None, n: int) -> int:
+    """The rolling window in samples: ``window`` checked, or ``n/20`` clipped to [5, 200]."""
     if window is not None:
         wv = real("window", window)
         if not (math.isfinite(wv) and wv == int(wv)):
@@ -152,9 +209,17 @@ def estimate_friction(
     w = int(window) if window is not None else int(np.clip(n // 20, 5, 200))
     if w < 3 or w > n // 2:
         raise EstimationError(f"rolling window {w} samples is invalid for {n} samples")
-    ratio = np.where(valid, t_tot / np.where(valid, n_tot, 1.0), np.nan)
+    return w
 
-    # Sample-to-sample noise of the ratio (MAD of 2nd differences, blind to smooth trends).
+
+def _ratio_noise(
+    ratio: NDArray[np.float64], valid: NDArray[np.bool_], n_scale: float
+) -> tuple[float, float, float]:
+    """Sample-to-sample noise sd of the ratio, its median level and the noise floor.
+
+    The sd is the MAD of 2nd differences (blind to smooth trends); the floor keeps it above
+    rounding for noise-free traces.
+    """
     rv = ratio[valid]
     if rv.size < _MIN_SAMPLES:
         raise EstimationError(
@@ -164,17 +229,31 @@ def estimate_friction(
     d2 = np.diff(rv, 2)
     sigma = float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
     level = float(np.median(rv))
-    noise_floor = max(sigma, 1e-6 * abs(level), 1e-12)
+    return sigma, level, max(sigma, 1e-6 * abs(level), 1e-12)
 
-    # Isolated spikes (a contact chattering for a sample or two) would split a steady slide
-    # into fragments: drop samples far (> 8 sd) from their 5-sample running median, and let a
-    # window count as full with up to 5 % of its samples dropped.
+
+def _spikes(
+    ratio: NDArray[np.float64], valid: NDArray[np.bool_], sigma: float, level: float
+) -> NDArray[np.bool_]:
+    """Samples far (> 8 sd) from their 5-sample running median.
+
+    Isolated spikes (a contact chattering for a sample or two) would split a steady slide into
+    fragments, so they are dropped (and a window still counts as full with up to 5 % dropped).
+    """
+    n = ratio.size
     spike = np.zeros(n, dtype=bool)
     if n >= 5:
         rm = _running_median(np.where(valid, ratio, np.nan), 5)
         dev = np.abs(ratio - rm)
         spike = valid & np.isfinite(rm) & (dev > 8.0 * max(sigma, 1e-9 * abs(level)))
-    good = valid & ~spike
+    return spike
+
+
+def _window_stats(
+    ratio: NDArray[np.float64], valid: NDArray[np.bool_], good: NDArray[np.bool_], w: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """Mean and sd of the ratio's good samples in every length-``w`` window, and which
+    windows are full (all in contact, at least 95 % of the samples good)."""
     r0 = np.where(good, ratio, 0.0)
     cnt, _ = _rolling(good.astype(np.float64), w)
     sum1, _ = _rolling(r0, w)
@@ -184,20 +263,29 @@ def estimate_friction(
     sd_w = np.sqrt(np.maximum(sum2 / safe - mean_w * mean_w, 0.0))
     ok_w, _ = _rolling(valid.astype(np.float64), w)
     full_w = (ok_w > 1.0 - 1e-12) & (cnt >= 0.95 - 1e-12)
-    # Within-window noise: 2nd differences under-read correlated noise, so also use the median
-    # rolling sd (plateaus -- static and sliding -- fill most of a run).
-    if full_w.any():
-        noise_floor = max(noise_floor, float(np.median(sd_w[full_w])))
-    steady_w = full_w & (sd_w <= stability * noise_floor)
+    return mean_w, sd_w, full_w
+
+
+def _highest_plateau(
+    steady_w: NDArray[np.bool_],
+    mean_w: NDArray[np.float64],
+    full_w: NDArray[np.bool_],
+    w: int,
+    noise_floor: float,
+    stability: float,
+) -> tuple[int, int]:
+    """Window starts ``[a, b)`` of the sliding plateau: the longest run at the highest level.
+
+    Coulomb: T/N equals mu only while sliding and is below it otherwise, hence the highest
+    plateau.  Runs at that level (within noise) separated by short gaps are one plateau: they
+    are merged and the longest taken, so that noise cannot pick a short high fragment.
+    """
     runs = [(a, b) for a, b in _runs(steady_w) if b - a >= max(w // 2, 2)]
     if not runs:
         raise EstimationError(
             "no steady slip: the tangential/normal ratio never plateaus (rolling sd never falls "
             f"to {stability} x its noise sd {noise_floor:.3g})"
         )
-    # Coulomb: T/N equals mu only while sliding and is below it otherwise -> highest plateau.
-    # Runs at that level (within noise) separated by short gaps are one plateau: merge them and
-    # take the longest, so that noise cannot pick a short high fragment.
     levels = np.array([float(np.median(mean_w[a:b])) for a, b in runs])
     top = float(levels.max())
     tol = 0.05 * abs(top) + 3.0 * noise_floor / math.sqrt(w)
@@ -209,13 +297,20 @@ def estimate_friction(
             merged[-1] = (pa, b)
         else:
             merged.append((a, b))
-    a, b = max(merged, key=lambda r: r[1] - r[0])
-    # Window starts a..b-1 cover samples a .. b-1+w-1; trim half a window at the front, where
-    # the first steady windows can still hold the tail of the onset transient.
+    return max(merged, key=lambda r: r[1] - r[0])
+
+
+def _trim_onset(
+    ratio: NDArray[np.float64], good: NDArray[np.bool_], a: int, b: int, w: int
+) -> tuple[int, int]:
+    """Sample range ``[i0, i1)`` of the plateau's windows with the onset transient's tail cut.
+
+    Window starts a..b-1 cover samples a .. b-1+w-1; half a window is trimmed at the front,
+    where the first steady windows can still hold the tail of the transient, then leading
+    half-window blocks whose mean still differs (> 3 sd of a block mean) from the rest.
+    """
     i0 = min(a + w // 2, b - 1)
     i1 = b - 1 + w
-    # Then drop leading half-window blocks whose mean still differs (> 3 sd of a block mean)
-    # from the rest of the window: the slow tail of the transient.
     bs = max(w // 2, 2)
     while i1 - i0 >= 4 * bs:
         head = ratio[i0 : i0 + bs][good[i0 : i0 + bs]]
@@ -226,10 +321,11 @@ def estimate_friction(
         if abs(float(head.mean()) - float(rest.mean())) <= 3.0 * sd_r / math.sqrt(bs):
             break
         i0 += bs
-    sel = np.arange(i0, i1)[good[i0:i1]]
-    N_w, T_w = n_tot[sel], t_tot[sel]
-    # A steady slide has no trend: reject a ratio that keeps drifting across the window.
-    tw, rw = tt[sel], ratio[sel]
+    return i0, i1
+
+
+def _reject_drift(tw: NDArray[np.float64], rw: NDArray[np.float64]) -> None:
+    """Refuse a ratio that keeps drifting across the window: a steady slide has no trend."""
     slope, icpt = np.polyfit(tw - tw[0], rw, 1)
     span = float(tw[-1] - tw[0])
     drift = abs(float(slope)) * span
@@ -240,6 +336,17 @@ def estimate_friction(
             f"no steady slip: the tangential/normal ratio never plateaus (it drifts by "
             f"{drift:.3g} over the steadiest window t=[{tw[0]:.6g}, {tw[-1]:.6g}] s)"
         )
+
+
+def _coulomb_estimate(
+    forces: _SlideForces, sel: NDArray[np.intp], window: tuple[float, float], w: int
+) -> FrictionEstimate:
+    """The force-weighted ratio over the samples ``sel``, its 95 % interval and warnings.
+
+    The interval's sample size is corrected for the residuals' lag-1 autocorrelation (AR(1)
+    effective sample size), since force noise is rarely white at the recording rate.
+    """
+    N_w, T_w = forces.normal[sel], forces.tangential[sel]
     mu = float(T_w.sum() / N_w.sum())
     e = T_w - mu * N_w
     m = e.size
@@ -252,8 +359,9 @@ def estimate_friction(
     se_mu = s_e * math.sqrt(m / n_eff) * math.sqrt(m) / float(N_w.sum())
     q = float(student_t.ppf(0.975, max(n_eff - 1.0, 1.0)))
     interval = (mu - q * se_mu, mu + q * se_mu)
-    mu_l = float(tl[sel].sum() / nl[sel].sum()) if nl[sel].sum() > 0 else math.nan
-    mu_r = float(tgr[sel].sum() / nr[sel].sum()) if nr[sel].sum() > 0 else math.nan
+    nl, nr = forces.normal_left[sel], forces.normal_right[sel]
+    mu_l = float(forces.tangential_left[sel].sum() / nl.sum()) if nl.sum() > 0 else math.nan
+    mu_r = float(forces.tangential_right[sel].sum() / nr.sum()) if nr.sum() > 0 else math.nan
     warns: list[str] = []
     reliable = True
     if m < 2 * w:
@@ -269,7 +377,7 @@ def estimate_friction(
     return FrictionEstimate(
         mu=mu,
         interval=(float(interval[0]), float(interval[1])),
-        window=(float(tt[i0]), float(tt[i1 - 1])),
+        window=window,
         n_samples=int(m),
         n_effective=float(n_eff),
         mu_left=mu_l,
