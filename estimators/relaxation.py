@@ -20,11 +20,12 @@ Two estimators return the same :class:`ViscoelasticEstimate`:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import brentq, curve_fit, least_squares
+from scipy.optimize import OptimizeResult, brentq, curve_fit, least_squares
 from scipy.stats import t as student_t
 
 from estimators.errors import EstimationError, check_traces, optional_real, real
@@ -510,10 +511,22 @@ def estimate_three_step(
         EstimationError: bad traces, no hold, no contact.
     """
     tt, th, m = _validate(t, theta, M)
+    kin, contact, hf = _clamp_phases(tt, th, m, omega, theta_d)
+    return _three_step_from_parts(tt, m, geometry, kin, contact, hf)
+
+
+def _clamp_phases(
+    tt: NDArray[np.float64],
+    th: NDArray[np.float64],
+    m: NDArray[np.float64],
+    omega: float | None,
+    theta_d: float | None,
+) -> tuple[ClampKinematics, ContactDetection, HoldFit]:
+    """The clamp's kinematics, first contact and eq. 6 hold fit: both estimators start here."""
     kin = infer_kinematics(tt, th, omega, theta_d)
     contact = detect_contact(tt, m, kin)
     hf = fit_hold_relaxation(tt, m, kin.t_d)
-    return _three_step_from_parts(tt, m, geometry, kin, contact, hf)
+    return kin, contact, hf
 
 
 @dataclass(frozen=True)
@@ -765,130 +778,34 @@ def estimate_full_fit(
         EstimationError: bad traces, no hold, no contact, a non-finite model or a solver failure.
     """
     tt, th, m = _validate(t, theta, M)
-    if not isinstance(fit_theta_1, bool | np.bool_):
-        raise EstimationError(f"fit_theta_1 must be True or False, got {fit_theta_1!r}")
-    if not (np.isfinite(real("clamp_weight", clamp_weight)) and clamp_weight > 0.0):
-        raise EstimationError(f"clamp_weight must be finite and > 0, got {clamp_weight!r}")
-    kin = infer_kinematics(tt, th, omega, theta_d)
-    contact = detect_contact(tt, m, kin)
-    hf = fit_hold_relaxation(tt, m, kin.t_d)
+    _check_full_fit_options(fit_theta_1, clamp_weight)
+    kin, contact, hf = _clamp_phases(tt, th, m, omega, theta_d)
     if not hf.relaxes:
         return _never_relaxes_estimate(tt, m, geometry, kin, contact.theta_1, hf, "full_fit")
-    K1_0 = K2_0 = B_0 = math.nan
-    try:
-        start = _three_step_from_parts(tt, m, geometry, kin, contact, hf)
-        K1_0, K2_0, B_0 = start.K1, start.K2, start.B
-    except (EstimationError, ArithmeticError, ValueError):
-        pass
-    if not all(np.isfinite(v) and v > 0.0 for v in (K1_0, K2_0, B_0)):
-        K1_0 = max(hf.M_inf, 1e-12) / max(
-            steady_moment(1.0, geometry, contact.theta_1, kin.theta_d), 1e-300
-        )
-        K2_0 = K1_0
-        B_0 = K2_0 / max(hf.lam, 1e-12)
-    theta_1_0 = contact.theta_1
+    start = _full_fit_start(tt, m, geometry, kin, contact, hf)
     th_hi = kin.theta_d * (1.0 - 1e-9)
-    theta_1_0 = min(max(theta_1_0, 0.0), th_hi * (1 - 1e-6))
-    in_clamp = tt <= kin.t_d
-    w = np.where(in_clamp, math.sqrt(clamp_weight), 1.0)
-
-    def model(p: NDArray[np.float64]) -> NDArray[np.float64]:
-        k1, k2, b = np.exp(np.clip(p[:3], -700.0, 700.0))
-        th1 = p[3] if fit_theta_1 else theta_1_0
-        S, V = moment_components(tt, geometry, th1, kin.theta_d, kin.omega, k2 / b, kin.t_start)
-        return k1 * S + k2 * V
-
-    def resid(p: NDArray[np.float64]) -> NDArray[np.float64]:
-        with np.errstate(all="ignore"):
-            r = w * (model(p) - m)
-        # A non-finite model (an overflowing corner of parameter space) is a huge residual, not
-        # a NaN that would poison the Jacobian.
-        return np.where(np.isfinite(r), r, 1e150)
-
-    x0 = [math.log(K1_0), math.log(K2_0), math.log(B_0)]
-    lb = [v - _LOG_SPAN for v in x0]
-    ub = [v + _LOG_SPAN for v in x0]
-    if fit_theta_1:
-        x0.append(theta_1_0)
-        lb.append(0.0)
-        ub.append(th_hi)
-    try:
-        with np.errstate(all="ignore"):
-            res = least_squares(
-                resid,
-                np.asarray(x0),
-                bounds=(lb, ub),
-                method="trf",
-                x_scale="jac",
-                xtol=1e-12,
-                ftol=1e-12,
-                gtol=1e-12,
-                max_nfev=200,
-            )
-    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-        raise EstimationError(f"full fit failed: {type(exc).__name__}: {exc}") from None
+    theta_1_0 = min(max(contact.theta_1, 0.0), th_hi * (1 - 1e-6))
+    model = _clamp_hold_model(tt, geometry, kin, theta_1_0 if not fit_theta_1 else None)
+    w = np.where(tt <= kin.t_d, math.sqrt(clamp_weight), 1.0)
+    x0, lb, ub = _search_box(start, theta_1_0 if fit_theta_1 else None, th_hi)
+    res = _least_squares_fit(model, w, m, x0, lb, ub)
     p = res.x
     k1, k2, b = (_safe_exp(v) for v in p[:3])
     th1 = float(p[3]) if fit_theta_1 else theta_1_0
     if not all(np.isfinite(v) and v > 0.0 for v in (k1, k2, b)):
         raise EstimationError(f"full fit diverged: K1={k1!r}, K2={k2!r}, B={b!r}")
-    n, npar = tt.size, p.size
-    dof = max(n - npar, 1)
-    s2 = 2.0 * float(res.cost) / dof
-    J = np.asarray(res.jac, dtype=np.float64)
-    cov = np.full((npar, npar), np.inf)
-    if np.all(np.isfinite(J)) and np.isfinite(s2):
-        with np.errstate(all="ignore"):
-            try:
-                jtj_inv = np.linalg.inv(J.T @ J)
-                if np.all(np.isfinite(jtj_inv)):
-                    cov = s2 * jtj_inv
-            except np.linalg.LinAlgError:
-                pass
-    q = float(student_t.ppf(0.975, dof))
-    se = np.sqrt(np.clip(np.nan_to_num(np.diag(cov), nan=np.inf), 0.0, np.inf))
-    intervals: dict[str, tuple[float, float]] = {}
-    for i, name in enumerate(("K1", "K2", "B")):
-        intervals[name] = (_safe_exp(p[i] - q * se[i]), _safe_exp(p[i] + q * se[i]))
-    if fit_theta_1:
-        intervals["theta_1"] = (th1 - q * se[3], th1 + q * se[3])
+    cov, dof = _fit_covariance(res, tt.size)
     params = SLSParams(k1, k2, b)
+    intervals = _full_fit_intervals(p, cov, float(student_t.ppf(0.975, dof)), params, th1)
     g1, tau1 = params.to_prony()
-    with np.errstate(all="ignore"):
-        grad_g = np.zeros(npar)
-        grad_g[0], grad_g[1] = -g1 * (1 - g1), g1 * (1 - g1)
-        var_g = float(grad_g @ np.where(np.isfinite(cov), cov, np.inf) @ grad_g)
-        se_g = math.sqrt(var_g) if np.isfinite(var_g) and var_g >= 0.0 else math.inf
-        grad_lt = np.zeros(npar)
-        grad_lt[1], grad_lt[2] = -1.0, 1.0
-        var_lt = float(grad_lt @ np.where(np.isfinite(cov), cov, np.inf) @ grad_lt)
-        se_lt = math.sqrt(var_lt) if np.isfinite(var_lt) and var_lt >= 0.0 else math.inf
-    intervals["g1"] = (g1 - q * se_g, g1 + q * se_g)
-    intervals["tau1"] = (tau1 * _safe_exp(-q * se_lt), tau1 * _safe_exp(q * se_lt))
-
-    fitted = model(p)
-    clamp = (tt > kin.t_start + th1 / kin.omega) & (tt <= kin.t_d)
-    hold = tt > kin.t_d
-    r2_clamp = _r2(m[clamp], fitted[clamp])
-    r2_hold = _r2(m[hold], fitted[hold])
+    r2_clamp, r2_hold = _phase_r2(tt, m, model(p), kin, th1)
     warns: list[str] = []
-    reliable = bool(res.success)
-    if not res.success:
-        warns.append(f"least_squares did not converge: {res.message}")
-    if np.any(np.isclose(p[:3], lb[:3])) or np.any(np.isclose(p[:3], ub[:3])):
-        warns.append("a parameter hit its search bound (e^+-20 of the start): the fit is wild")
-        reliable = False
-    if not np.all(np.isfinite(cov)):
-        warns.append("the fit's covariance is singular: parameters are not all identifiable")
-        reliable = False
-    vals = np.array([k1, k2, b])
     half = np.array([(intervals[k][1] - intervals[k][0]) / 2 for k in ("K1", "K2", "B")])
-    reliable &= _reliability(hf, tau1, vals, half, warns, r2_clamp)
-    m_peak = float(
-        moment_trace(
-            np.array([kin.t_d]), params, geometry, th1, kin.theta_d, kin.omega, kin.t_start
-        )[0]
+    reliable = _full_fit_reliability(res, lb, ub, cov, warns) & _reliability(
+        hf, tau1, np.array([k1, k2, b]), half, warns, r2_clamp
     )
+    td = np.array([kin.t_d])
+    m_peak = float(moment_trace(td, params, geometry, th1, kin.theta_d, kin.omega, kin.t_start)[0])
     return ViscoelasticEstimate(
         K1=k1,
         K2=k2,
@@ -908,3 +825,191 @@ def estimate_full_fit(
         warnings=warns,
         method="full_fit",
     )
+
+
+def _check_full_fit_options(fit_theta_1: object, clamp_weight: float) -> None:
+    """Refuse a ``fit_theta_1`` that is not a bool and a ``clamp_weight`` that is not > 0."""
+    if not isinstance(fit_theta_1, bool | np.bool_):
+        raise EstimationError(f"fit_theta_1 must be True or False, got {fit_theta_1!r}")
+    if not (np.isfinite(real("clamp_weight", clamp_weight)) and clamp_weight > 0.0):
+        raise EstimationError(f"clamp_weight must be finite and > 0, got {clamp_weight!r}")
+
+
+def _full_fit_start(
+    tt: NDArray[np.float64],
+    m: NDArray[np.float64],
+    geometry: ClampGeometry,
+    kin: ClampKinematics,
+    contact: ContactDetection,
+    hf: HoldFit,
+) -> tuple[float, float, float]:
+    """Start values ``K1, K2, B`` of the full fit: the three-step estimate where it gives
+    positive numbers, else eq. 7's ``K1`` with ``K2 = K1`` and ``B`` from the hold's rate."""
+    K1_0 = K2_0 = B_0 = math.nan
+    try:
+        start = _three_step_from_parts(tt, m, geometry, kin, contact, hf)
+        K1_0, K2_0, B_0 = start.K1, start.K2, start.B
+    except (EstimationError, ArithmeticError, ValueError):
+        pass
+    if not all(np.isfinite(v) and v > 0.0 for v in (K1_0, K2_0, B_0)):
+        K1_0 = max(hf.M_inf, 1e-12) / max(
+            steady_moment(1.0, geometry, contact.theta_1, kin.theta_d), 1e-300
+        )
+        K2_0 = K1_0
+        B_0 = K2_0 / max(hf.lam, 1e-12)
+    return K1_0, K2_0, B_0
+
+
+def _search_box(
+    start: tuple[float, float, float], theta_1: float | None, th_hi: float
+) -> tuple[list[float], list[float], list[float]]:
+    """Start and bounds of the fit's parameters: ``log K1, log K2, log B`` each within
+    ``e^+-20`` of its start (a wild fit cannot overflow), then ``theta_1`` in ``[0, th_hi]``
+    when it is fitted (given)."""
+    x0 = [math.log(v) for v in start]
+    lb = [v - _LOG_SPAN for v in x0]
+    ub = [v + _LOG_SPAN for v in x0]
+    if theta_1 is not None:
+        x0.append(theta_1)
+        lb.append(0.0)
+        ub.append(th_hi)
+    return x0, lb, ub
+
+
+def _clamp_hold_model(
+    tt: NDArray[np.float64],
+    geometry: ClampGeometry,
+    kin: ClampKinematics,
+    theta_1: float | None,
+) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
+    """The exact clamp+hold moment at ``tt`` as a function of the fit's parameters
+    ``(log K1, log K2, log B[, theta_1])``; ``theta_1`` given fixes the contact angle."""
+
+    def model(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        k1, k2, b = np.exp(np.clip(p[:3], -700.0, 700.0))
+        th1 = p[3] if theta_1 is None else theta_1
+        S, V = moment_components(tt, geometry, th1, kin.theta_d, kin.omega, k2 / b, kin.t_start)
+        return k1 * S + k2 * V
+
+    return model
+
+
+def _least_squares_fit(
+    model: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    w: NDArray[np.float64],
+    m: NDArray[np.float64],
+    x0: list[float],
+    lb: list[float],
+    ub: list[float],
+) -> OptimizeResult:
+    """``least_squares`` (TRF) of the weighted residuals ``w (model - m)`` within the bounds.
+
+    A non-finite model (an overflowing corner of parameter space) is a huge residual, not a
+    NaN that would poison the Jacobian; a solver exception becomes an :class:`EstimationError`.
+    """
+
+    def resid(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        with np.errstate(all="ignore"):
+            r = w * (model(p) - m)
+        return np.where(np.isfinite(r), r, 1e150)
+
+    try:
+        with np.errstate(all="ignore"):
+            return least_squares(
+                resid,
+                np.asarray(x0),
+                bounds=(lb, ub),
+                method="trf",
+                x_scale="jac",
+                xtol=1e-12,
+                ftol=1e-12,
+                gtol=1e-12,
+                max_nfev=200,
+            )
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        raise EstimationError(f"full fit failed: {type(exc).__name__}: {exc}") from None
+
+
+def _fit_covariance(res: OptimizeResult, n: int) -> tuple[NDArray[np.float64], int]:
+    """``s^2 (J^T J)^-1`` of a least-squares fit to ``n`` samples (inf where singular) and
+    its degrees of freedom."""
+    npar = res.x.size
+    dof = max(n - npar, 1)
+    s2 = 2.0 * float(res.cost) / dof
+    J = np.asarray(res.jac, dtype=np.float64)
+    cov = np.full((npar, npar), np.inf)
+    if np.all(np.isfinite(J)) and np.isfinite(s2):
+        with np.errstate(all="ignore"):
+            try:
+                jtj_inv = np.linalg.inv(J.T @ J)
+                if np.all(np.isfinite(jtj_inv)):
+                    cov = s2 * jtj_inv
+            except np.linalg.LinAlgError:
+                pass
+    return cov, dof
+
+
+def _full_fit_intervals(
+    p: NDArray[np.float64],
+    cov: NDArray[np.float64],
+    q: float,
+    params: SLSParams,
+    th1: float,
+) -> dict[str, tuple[float, float]]:
+    """95 % intervals (Student-t quantile ``q``) of K1, K2, B from log space, theta_1 when
+    fitted (a fourth parameter), and g1, tau1 by the delta method."""
+    npar = p.size
+    se = np.sqrt(np.clip(np.nan_to_num(np.diag(cov), nan=np.inf), 0.0, np.inf))
+    intervals: dict[str, tuple[float, float]] = {}
+    for i, name in enumerate(("K1", "K2", "B")):
+        intervals[name] = (_safe_exp(p[i] - q * se[i]), _safe_exp(p[i] + q * se[i]))
+    if npar > 3:
+        intervals["theta_1"] = (th1 - q * se[3], th1 + q * se[3])
+    g1, tau1 = params.to_prony()
+    with np.errstate(all="ignore"):
+        grad_g = np.zeros(npar)
+        grad_g[0], grad_g[1] = -g1 * (1 - g1), g1 * (1 - g1)
+        var_g = float(grad_g @ np.where(np.isfinite(cov), cov, np.inf) @ grad_g)
+        se_g = math.sqrt(var_g) if np.isfinite(var_g) and var_g >= 0.0 else math.inf
+        grad_lt = np.zeros(npar)
+        grad_lt[1], grad_lt[2] = -1.0, 1.0
+        var_lt = float(grad_lt @ np.where(np.isfinite(cov), cov, np.inf) @ grad_lt)
+        se_lt = math.sqrt(var_lt) if np.isfinite(var_lt) and var_lt >= 0.0 else math.inf
+    intervals["g1"] = (g1 - q * se_g, g1 + q * se_g)
+    intervals["tau1"] = (tau1 * _safe_exp(-q * se_lt), tau1 * _safe_exp(q * se_lt))
+    return intervals
+
+
+def _phase_r2(
+    tt: NDArray[np.float64],
+    m: NDArray[np.float64],
+    fitted: NDArray[np.float64],
+    kin: ClampKinematics,
+    theta_1: float,
+) -> tuple[float, float]:
+    """R^2 of the fitted moment on the clamp (from contact at ``theta_1``) and on the hold."""
+    clamp = (tt > kin.t_start + theta_1 / kin.omega) & (tt <= kin.t_d)
+    hold = tt > kin.t_d
+    return _r2(m[clamp], fitted[clamp]), _r2(m[hold], fitted[hold])
+
+
+def _full_fit_reliability(
+    res: OptimizeResult,
+    lb: list[float],
+    ub: list[float],
+    cov: NDArray[np.float64],
+    warns: list[str],
+) -> bool:
+    """Whether the solver converged inside its bounds to identifiable parameters; appends
+    the reasons to ``warns``."""
+    p = res.x
+    reliable = bool(res.success)
+    if not res.success:
+        warns.append(f"least_squares did not converge: {res.message}")
+    if np.any(np.isclose(p[:3], lb[:3])) or np.any(np.isclose(p[:3], ub[:3])):
+        warns.append("a parameter hit its search bound (e^+-20 of the start): the fit is wild")
+        reliable = False
+    if not np.all(np.isfinite(cov)):
+        warns.append("the fit's covariance is singular: parameters are not all identifiable")
+        reliable = False
+    return reliable
