@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -521,12 +522,19 @@ def _clamp_phases(
     m: NDArray[np.float64],
     omega: float | None,
     theta_d: float | None,
-) -> tuple[ClampKinematics, ContactDetection, HoldFit]:
+) -> _ClampPhases:
     """The clamp's kinematics, first contact and eq. 6 hold fit: both estimators start here."""
     kin = infer_kinematics(tt, th, omega, theta_d)
     contact = detect_contact(tt, m, kin)
-    hf = fit_hold_relaxation(tt, m, kin.t_d)
-    return kin, contact, hf
+    return _ClampPhases(kin, contact, fit_hold_relaxation(tt, m, kin.t_d))
+
+
+class _ClampPhases(NamedTuple):
+    """What the phase detection read off one clamp-and-hold trace."""
+
+    kin: ClampKinematics
+    contact: ContactDetection
+    hf: HoldFit
 
 
 @dataclass(frozen=True)
@@ -779,15 +787,14 @@ def estimate_full_fit(
     """
     tt, th, m = _validate(t, theta, M)
     _check_full_fit_options(fit_theta_1, clamp_weight)
-    kin, contact, hf = _clamp_phases(tt, th, m, omega, theta_d)
+    phases = _clamp_phases(tt, th, m, omega, theta_d)
+    kin, contact, hf = phases
     if not hf.relaxes:
         return _never_relaxes_estimate(tt, m, geometry, kin, contact.theta_1, hf, "full_fit")
-    start = _full_fit_start(tt, m, geometry, kin, contact, hf)
-    th_hi = kin.theta_d * (1.0 - 1e-9)
-    theta_1_0 = min(max(contact.theta_1, 0.0), th_hi * (1 - 1e-6))
+    start = _full_fit_start(tt, m, geometry, phases)
+    x0, lb, ub, theta_1_0 = _search_box(start, contact.theta_1, kin.theta_d, fit_theta_1)
     model = _clamp_hold_model(tt, geometry, kin, theta_1_0 if not fit_theta_1 else None)
     w = np.where(tt <= kin.t_d, math.sqrt(clamp_weight), 1.0)
-    x0, lb, ub = _search_box(start, theta_1_0 if fit_theta_1 else None, th_hi)
     res = _least_squares_fit(model, w, m, x0, lb, ub)
     p = res.x
     k1, k2, b = (_safe_exp(v) for v in p[:3])
@@ -798,12 +805,11 @@ def estimate_full_fit(
     params = SLSParams(k1, k2, b)
     intervals = _full_fit_intervals(p, cov, float(student_t.ppf(0.975, dof)), params, th1)
     g1, tau1 = params.to_prony()
-    r2_clamp, r2_hold = _phase_r2(tt, m, model(p), kin, th1)
-    warns: list[str] = []
-    half = np.array([(intervals[k][1] - intervals[k][0]) / 2 for k in ("K1", "K2", "B")])
-    reliable = _full_fit_reliability(res, lb, ub, cov, warns) & _reliability(
-        hf, tau1, np.array([k1, k2, b]), half, warns, r2_clamp
-    )
+    fitted = model(p)
+    clamp = (tt > kin.t_start + th1 / kin.omega) & (tt <= kin.t_d)
+    hold = tt > kin.t_d
+    r2_clamp = _r2(m[clamp], fitted[clamp])
+    reliable, warns = _full_fit_reliability(res, (lb, ub), cov, hf, tau1, intervals, r2_clamp)
     td = np.array([kin.t_d])
     m_peak = float(moment_trace(td, params, geometry, th1, kin.theta_d, kin.omega, kin.t_start)[0])
     return ViscoelasticEstimate(
@@ -820,7 +826,7 @@ def estimate_full_fit(
         theta_d=kin.theta_d,
         intervals=intervals,
         r2_clamp=r2_clamp,
-        r2_hold=r2_hold,
+        r2_hold=_r2(m[hold], fitted[hold]),
         reliable=bool(reliable),
         warnings=warns,
         method="full_fit",
@@ -836,15 +842,11 @@ def _check_full_fit_options(fit_theta_1: object, clamp_weight: float) -> None:
 
 
 def _full_fit_start(
-    tt: NDArray[np.float64],
-    m: NDArray[np.float64],
-    geometry: ClampGeometry,
-    kin: ClampKinematics,
-    contact: ContactDetection,
-    hf: HoldFit,
+    tt: NDArray[np.float64], m: NDArray[np.float64], geometry: ClampGeometry, phases: _ClampPhases
 ) -> tuple[float, float, float]:
     """Start values ``K1, K2, B`` of the full fit: the three-step estimate where it gives
     positive numbers, else eq. 7's ``K1`` with ``K2 = K1`` and ``B`` from the hold's rate."""
+    kin, contact, hf = phases
     K1_0 = K2_0 = B_0 = math.nan
     try:
         start = _three_step_from_parts(tt, m, geometry, kin, contact, hf)
@@ -861,19 +863,21 @@ def _full_fit_start(
 
 
 def _search_box(
-    start: tuple[float, float, float], theta_1: float | None, th_hi: float
-) -> tuple[list[float], list[float], list[float]]:
-    """Start and bounds of the fit's parameters: ``log K1, log K2, log B`` each within
-    ``e^+-20`` of its start (a wild fit cannot overflow), then ``theta_1`` in ``[0, th_hi]``
-    when it is fitted (given)."""
+    start: tuple[float, float, float], theta_1: float, theta_d: float, fit_theta_1: bool
+) -> tuple[list[float], list[float], list[float], float]:
+    """Start and bounds of the fit's parameters, and the start ``theta_1`` (moved just inside
+    ``[0, theta_d)``): ``log K1, log K2, log B`` each within ``e^+-20`` of its start (a wild
+    fit cannot overflow), then ``theta_1`` in ``[0, theta_d)`` when it is fitted."""
+    th_hi = theta_d * (1.0 - 1e-9)
+    theta_1_0 = min(max(theta_1, 0.0), th_hi * (1 - 1e-6))
     x0 = [math.log(v) for v in start]
     lb = [v - _LOG_SPAN for v in x0]
     ub = [v + _LOG_SPAN for v in x0]
-    if theta_1 is not None:
-        x0.append(theta_1)
+    if fit_theta_1:
+        x0.append(theta_1_0)
         lb.append(0.0)
         ub.append(th_hi)
-    return x0, lb, ub
+    return x0, lb, ub, theta_1_0
 
 
 def _clamp_hold_model(
@@ -980,29 +984,20 @@ def _full_fit_intervals(
     return intervals
 
 
-def _phase_r2(
-    tt: NDArray[np.float64],
-    m: NDArray[np.float64],
-    fitted: NDArray[np.float64],
-    kin: ClampKinematics,
-    theta_1: float,
-) -> tuple[float, float]:
-    """R^2 of the fitted moment on the clamp (from contact at ``theta_1``) and on the hold."""
-    clamp = (tt > kin.t_start + theta_1 / kin.omega) & (tt <= kin.t_d)
-    hold = tt > kin.t_d
-    return _r2(m[clamp], fitted[clamp]), _r2(m[hold], fitted[hold])
-
-
 def _full_fit_reliability(
     res: OptimizeResult,
-    lb: list[float],
-    ub: list[float],
+    box: tuple[list[float], list[float]],
     cov: NDArray[np.float64],
-    warns: list[str],
-) -> bool:
-    """Whether the solver converged inside its bounds to identifiable parameters; appends
-    the reasons to ``warns``."""
+    hf: HoldFit,
+    tau1: float,
+    intervals: dict[str, tuple[float, float]],
+    r2_clamp: float,
+) -> tuple[bool, list[str]]:
+    """Whether the fit can be trusted, and why not: the solver converged inside its search
+    ``box`` to identifiable parameters, and the checks both estimators share pass."""
     p = res.x
+    lb, ub = box
+    warns: list[str] = []
     reliable = bool(res.success)
     if not res.success:
         warns.append(f"least_squares did not converge: {res.message}")
@@ -1012,4 +1007,7 @@ def _full_fit_reliability(
     if not np.all(np.isfinite(cov)):
         warns.append("the fit's covariance is singular: parameters are not all identifiable")
         reliable = False
-    return reliable
+    vals = np.array([_safe_exp(v) for v in p[:3]])
+    half = np.array([(intervals[k][1] - intervals[k][0]) / 2 for k in ("K1", "K2", "B")])
+    reliable &= _reliability(hf, tau1, vals, half, warns, r2_clamp)
+    return reliable, warns
