@@ -419,58 +419,118 @@ def servo_commands(scene: Scene, profile: Profile) -> tuple[np.ndarray, np.ndarr
 def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
          observer: Callable[[mujoco.MjData], None] | None = None,
          time_scale: TimeScale | None = None) -> SimResult:
+    """Simulate ``experiment`` on ``scene`` and collect its traces and per-piece outcomes."""
     m = scene.model
     d = initial_state(scene)
-    ids = scene.ids
     dt = m.opt.timestep
     profile = make_profile(experiment, action, dt, time_scale)
+    schedule = _schedule(profile, dt, record_hz)
+    prony = PronyRelaxation(scene)
+    prony.reset(d)
+    n_rec = sum(schedule.record)
+    rec = {k: np.zeros(n_rec) for k in ("t", "theta", "theta_cmd", "lift")}
+    rec["phase"] = np.zeros(n_rec, dtype=np.int8)
+    # the sensors, strain, blade overlap and lowest vertex: raw state in the loop, the
+    # meters over batches of samples (recording.py says why)
+    recorder = TraceRecorder(scene, d, n_rec)
+
+    def fail(why: str) -> SimulationDivergedError:
+        return SimulationDivergedError(f"{why} at t={d.time:.4f} s in {experiment}",
+                                       scene.describe(), action.to_dict())
+
+    wall = time.perf_counter()
+    try:
+        stall_cap, end_stop = _step_through(scene, d, profile, schedule, prony, recorder, rec,
+                                            observer, fail)
+    finally:
+        prony.restore()  # the model's compiled rest shape, for the next run
+    readings, rec["blade_overlap"], le_trace = recorder.finish()  # (timed: part of the run)
+    wall = time.perf_counter() - wall
+    for k in ("moment", "normal", "tangential"):
+        rec[f"{k}_left"], rec[f"{k}_right"] = readings[k].T
+    rec["force"] = readings["force"]
+    if not np.isfinite(d.qpos).all():
+        raise fail("non-finite state")
+    warned = {mujoco.mjtWarning(k).name: int(w.number) for k, w in enumerate(d.warning)
+              if w.number}
+    fetched, passed = _fetched_and_passed(scene, d, recorder, experiment, action)
+    pieces_out = _piece_outcomes(scene, d, recorder, rec["phase"], le_trace, fetched, passed)
+    rec["max_log_strain"] = le_trace.max(axis=1)
+    masses = np.array([p.mass for p in scene.pieces])
+    q_open, n, i_scaled = scene.pose.theta_open, len(profile.theta), schedule.i_scaled
+    return SimResult(
+        experiment=experiment, action=action, scene=scene.describe(), traces=rec,
+        pieces=pieces_out, fetch_rate=float(fetched.mean()),
+        fetch_rate_mass=float(masses[fetched].sum() / masses.sum()),
+        geometry=_geometry_summary(scene), material=material_summary(scene.pieces),
+        wall_time=wall, n_steps=n, timestep=dt,
+        extra={"t_clamp_start": profile.t_clamp_start, "mujoco_warnings": warned,
+               "time_scale": None if time_scale is None else dataclasses.asdict(time_scale),
+               "t_scaled": i_scaled * dt if i_scaled < n else None,
+               "stalled_at": None if stall_cap == np.inf else float(stall_cap - q_open),
+               "max_blade_overlap": float(rec["blade_overlap"].max()),
+               # the clamp angle the motor was told in the end: theta_d, or less where the
+               # end stop or a stall stopped it
+               "theta_d_applied": float(min(action.theta_d, end_stop, stall_cap - q_open)),
+               "passed_through": np.flatnonzero(passed).tolist()})
+
+
+@dataclass(frozen=True)
+class _Schedule:
+    """Which physics steps a run records, and where the time scale of its hold changes.
+
+    The time-scaled hold (if any) starts at step ``i_scaled`` and its sensors are recorded at
+    every step (each stands for several); the strain, blade overlap and lowest vertex, which
+    hardly move in a hold, keep the regular cadence (``metered``) and are held between.
+    Lists, not arrays: the step loop reads one element at a time, faster from a list.
+    """
+
+    i_scaled: int  # first step of the time-scaled hold (the step count: none)
+    t_physical: list[float]  # [s] physical time at the end of each step
+    rescale: dict[int, float]  # step -> the time scale (in physics steps) from there on
+    metered: list[bool]  # steps whose strain, overlap and lowest vertex are sampled
+    record: list[bool]  # steps recorded in the traces
+
+
+def _schedule(profile: Profile, dt: float, record_hz: float) -> _Schedule:
+    """The recording cadence (``record_hz``) and time-scale changes of ``profile``'s steps."""
     n = len(profile.theta)
     every = max(1, round(1.0 / (record_hz * dt)))
-    # The time-scaled hold (if any) starts at step i_scaled and its sensors are recorded at
-    # every step (each stands for several); the strain, blade overlap and lowest vertex,
-    # which hardly move in a hold, keep the regular cadence and are held between.
     i_scaled = n if profile.i_scaled is None else profile.i_scaled
-    # the physical time at the end of each step, and the steps at which the time scale
-    # changes, with the scale (in physics steps) from there on
     t_physical = np.cumsum(profile.step_time).tolist()
     scale = profile.step_time[i_scaled:] / dt
     changes = np.flatnonzero(np.diff(scale, prepend=np.nan) != 0)
     rescale = dict(zip((i_scaled + changes).tolist(), scale[changes].tolist(), strict=True))
     metered = np.arange(n) % every == 0
     record = (metered | (np.arange(n) >= i_scaled)).tolist()
-    metered = metered.tolist()
-    prony = PronyRelaxation(scene)
-    prony.reset(d)
+    return _Schedule(i_scaled, t_physical, rescale, metered.tolist(), record)
 
+
+def _step_through(scene: Scene, d: mujoco.MjData, profile: Profile, schedule: _Schedule,
+                  prony: PronyRelaxation, recorder: TraceRecorder, rec: dict[str, np.ndarray],
+                  observer: Callable[[mujoco.MjData], None] | None,
+                  fail: Callable[[str], SimulationDivergedError]) -> tuple[float, float]:
+    """Step the physics through ``profile``, filling ``rec`` and ``recorder`` at the
+    recorded steps; returns the hinge angle the motor stalled at (inf: none) and the end
+    stop (study angle)."""
+    m, ids = scene.model, scene.ids
+    dt = m.opt.timestep
+    n = len(profile.theta)
+    i_scaled, t_physical, rescale = schedule.i_scaled, schedule.t_physical, schedule.rescale
+    metered, record = schedule.metered, schedule.record
     q_open = scene.pose.theta_open
-    servos = [ids["servo_left"], ids["servo_right"]]
     lift_act = ids["servo_lift"]
     hinge_q = [m.jnt_qposadr[ids["hinge_left"]], m.jnt_qposadr[ids["hinge_right"]]]
-    hinge_v = [m.jnt_dofadr[ids["hinge_left"]], m.jnt_dofadr[ids["hinge_right"]]]
+    dof_left, dof_right = m.jnt_dofadr[ids["hinge_left"]], m.jnt_dofadr[ids["hinge_right"]]
     lift_q = m.jnt_qposadr[ids["lift"]]
     ctrl_hinge, ctrl_lift = servo_commands(scene, profile)
-
-    n_rec = sum(record)
-    rec = {k: np.zeros(n_rec) for k in ("t", "theta", "theta_cmd", "lift")}
-    rec["phase"] = np.zeros(n_rec, dtype=np.int8)
-    # the sensors, strain, blade overlap and lowest vertex: raw state in the loop, the
-    # meters over batches of samples (recording.py says why)
-    recorder = TraceRecorder(scene, d, n_rec)
-    bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
-
-    def fail(why: str) -> SimulationDivergedError:
-        return SimulationDivergedError(f"{why} at t={d.time:.4f} s in {experiment}",
-                                       scene.describe(), action.to_dict())
-
     # Views into MjData, fetched once: attribute access costs more than the arithmetic here.
     qpos, qfrc_constraint, ctrl = d.qpos, d.qfrc_constraint, d.ctrl
-    bad_qacc_count = d.warning[bad_qacc]
-    dof_left, dof_right = hinge_v
+    bad_qacc_count = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
     # Sleeping islands (multi-piece scenes, see scene.py): while every piece sleeps only the
     # robot's dofs are awake, the nodes are frozen, and the relaxation and strain can wait.
     robot_nv = scene.robot_nv
     moved = True  # a piece moved since the last strain sample
-    wall = time.perf_counter()
     r = 0
     stall_cap = np.inf  # the angle the motor stalled at: the command never goes past it
     # The controller's end stop: the blades never close past CLOSED_MARGIN before their faces
@@ -481,57 +541,49 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     theta_told = np.minimum(profile.theta, end_stop)  # the angle the motor is told, unstalled
     load = 0.0  # the motor's load moment, low-passed over STALL_TIME (contact impulses pass)
     smooth = 1.0 - math.exp(-dt / STALL_TIME)
-    left, right = servos
-    try:
-        for i in range(n):
-            if i in rescale:
-                prony.set_time_scale(rescale[i])
-            # (two scalar reads: cheaper than a numpy reduction over a two-value gather)
-            load += smooth * (max(abs(qfrc_constraint[dof_left]), abs(qfrc_constraint[dof_right]))
-                              - load)
-            if stall_cap == np.inf and load > STALL_MOMENT:
-                # A real clamping motor cannot push harder than its stall moment: the blades
-                # stop where they are (stiff pieces are held, not crushed).
-                stall_cap = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]])
-            ctrl[left] = ctrl[right] = min(ctrl_hinge[i], stall_cap)
-            ctrl[lift_act] = ctrl_lift[i]
-            asleep = d.nv_awake == robot_nv
-            prony.apply(d, asleep)
-            mujoco.mj_step(m, d)
-            moved = moved or not (asleep and d.nv_awake == robot_nv)
-            if bad_qacc_count.number:  # autoreset is off: the state is still the bad one
-                raise fail("bad or non-finite acceleration")
-            if record[i]:
-                # physical time: the scaled hold's steps stand for several steps each
-                rec["t"][r] = d.time if i < i_scaled else t_physical[i]
-                rec["phase"][r] = profile.phase[i]
-                rec["theta"][r] = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]]) - q_open
-                # what the motor is told: the profile within the end stop, held where it stalled
-                rec["theta_cmd"][r] = min(theta_told[min(i + 1, n - 1)], stall_cap - q_open)
-                rec["lift"][r] = qpos[lift_q]
-                # (step 0 is metered, and its strain fresh)
-                fresh = metered[i] and (moved or r == 0)
-                recorder.sample(metered[i], fresh)
-                if fresh:
-                    moved = False
-                if observer is not None:
-                    observer(d)
-                r += 1
-    finally:
-        prony.restore()  # the model's compiled rest shape, for the next run
-    readings, rec["blade_overlap"], le_trace = recorder.finish()  # (timed: part of the run)
-    wall = time.perf_counter() - wall
-    for k in ("moment", "normal", "tangential"):
-        rec[f"{k}_left"], rec[f"{k}_right"] = readings[k].T
-    rec["force"] = readings["force"]
-    lowest_z = recorder.lowest_z
-    if not np.isfinite(d.qpos).all():
-        raise fail("non-finite state")
-    warned = {mujoco.mjtWarning(k).name: int(w.number) for k, w in enumerate(d.warning)
-              if w.number}
+    left, right = ids["servo_left"], ids["servo_right"]
+    for i in range(n):
+        if i in rescale:
+            prony.set_time_scale(rescale[i])
+        # (two scalar reads: cheaper than a numpy reduction over a two-value gather)
+        load += smooth * (max(abs(qfrc_constraint[dof_left]), abs(qfrc_constraint[dof_right]))
+                          - load)
+        if stall_cap == np.inf and load > STALL_MOMENT:
+            # A real clamping motor cannot push harder than its stall moment: the blades
+            # stop where they are (stiff pieces are held, not crushed).
+            stall_cap = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]])
+        ctrl[left] = ctrl[right] = min(ctrl_hinge[i], stall_cap)
+        ctrl[lift_act] = ctrl_lift[i]
+        asleep = d.nv_awake == robot_nv
+        prony.apply(d, asleep)
+        mujoco.mj_step(m, d)
+        moved = moved or not (asleep and d.nv_awake == robot_nv)
+        if bad_qacc_count.number:  # autoreset is off: the state is still the bad one
+            raise fail("bad or non-finite acceleration")
+        if record[i]:
+            # physical time: the scaled hold's steps stand for several steps each
+            rec["t"][r] = d.time if i < i_scaled else t_physical[i]
+            rec["phase"][r] = profile.phase[i]
+            rec["theta"][r] = 0.5 * (qpos[hinge_q[0]] + qpos[hinge_q[1]]) - q_open
+            # what the motor is told: the profile within the end stop, held where it stalled
+            rec["theta_cmd"][r] = min(theta_told[min(i + 1, n - 1)], stall_cap - q_open)
+            rec["lift"][r] = qpos[lift_q]
+            # (step 0 is metered, and its strain fresh)
+            fresh = metered[i] and (moved or r == 0)
+            recorder.sample(metered[i], fresh)
+            if fresh:
+                moved = False
+            if observer is not None:
+                observer(d)
+            r += 1
+    return stall_cap, end_stop
 
+
+def _fetched_and_passed(scene: Scene, d: mujoco.MjData, recorder: TraceRecorder,
+                        experiment: str, action: FetchAction) -> tuple[np.ndarray, np.ndarray]:
+    """Per piece at the end of a run: fetched (lifted and between the blades, fetch only)
+    and passed through a blade or the plate (never counted fetched)."""
     low, centre = recorder.positions(d)
-    masses = np.array([p.mass for p in scene.pieces])
     half_gap = _blade_half_gap(scene, d)
     stage_y = scene.pose.stage_xy[1]
     if experiment == "fetch":
@@ -544,11 +596,20 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     # represent: its LE is then no measurement and the piece is not really held, so it is
     # reported as passed through and never counted fetched.  (A firm clamp's blade edge can
     # indent a piece 2 mm deep without that: measured on a Block scene, LE 0.24, held.)
-    plate_thickness = 2.0 * float(m.geom_size[ids["plate"]][2])
+    plate_thickness = 2.0 * float(scene.model.geom_size[scene.ids["plate"]][2])
     passed = ((recorder.max_overlap > 2.0 * BLADE_HALF_THICKNESS)
-              | (lowest_z < -plate_thickness))
+              | (recorder.lowest_z < -plate_thickness))
     fetched &= ~passed
-    phase = rec["phase"]
+    return fetched, passed
+
+
+def _piece_outcomes(scene: Scene, d: mujoco.MjData, recorder: TraceRecorder,
+                    phase: np.ndarray, le_trace: np.ndarray, fetched: np.ndarray,
+                    passed: np.ndarray) -> list[dict[str, Any]]:
+    """Each piece's outcome: fetched, the largest strain in the clamp and in the lift, where
+    it ended, and how deep it went into the plate and the blades."""
+    low, centre = recorder.positions(d)
+    dt = scene.model.opt.timestep
     in_clamp = np.isin(phase, [PHASE_CODE["clamp"], PHASE_CODE["hold"], PHASE_CODE["slide"]])
     in_lift = np.isin(phase, [PHASE_CODE["lift"], PHASE_CODE["air"]])
     plastic = residual_plastic_strain(scene, d)
@@ -563,29 +624,19 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
             "residual_plastic_strain": plastic[k],
             "final_centre": centre[k].tolist(),
             "final_lowest_z": float(low[k]),
-            "lowest_z_ever": float(lowest_z[k]),
+            "lowest_z_ever": float(recorder.lowest_z[k]),
             "max_blade_overlap": float(recorder.max_overlap[k]),
             "passed_through": bool(passed[k]),
         })
-    rec["max_log_strain"] = le_trace.max(axis=1)
-    geometry = {**scene.pose.to_dict(),
-                "blade_length": scene.geometry.blade_length,
-                "blade_width": scene.geometry.blade_width,
-                "tip_clearance": scene.geometry.tip_clearance, "gap": scene.geometry.gap}
-    return SimResult(
-        experiment=experiment, action=action, scene=scene.describe(), traces=rec,
-        pieces=pieces_out, fetch_rate=float(fetched.mean()),
-        fetch_rate_mass=float(masses[fetched].sum() / masses.sum()), geometry=geometry,
-        material=material_summary(scene.pieces), wall_time=wall, n_steps=n, timestep=dt,
-        extra={"t_clamp_start": profile.t_clamp_start, "mujoco_warnings": warned,
-               "time_scale": None if time_scale is None else dataclasses.asdict(time_scale),
-               "t_scaled": i_scaled * dt if i_scaled < n else None,
-               "stalled_at": None if stall_cap == np.inf else float(stall_cap - q_open),
-               "max_blade_overlap": float(rec["blade_overlap"].max()),
-               # the clamp angle the motor was told in the end: theta_d, or less where the
-               # end stop or a stall stopped it
-               "theta_d_applied": float(min(action.theta_d, end_stop, stall_cap - q_open)),
-               "passed_through": np.flatnonzero(passed).tolist()})
+    return pieces_out
+
+
+def _geometry_summary(scene: Scene) -> dict[str, Any]:
+    """The clamp pose and the end-effector's sizes, as a result reports them."""
+    return {**scene.pose.to_dict(),
+            "blade_length": scene.geometry.blade_length,
+            "blade_width": scene.geometry.blade_width,
+            "tip_clearance": scene.geometry.tip_clearance, "gap": scene.geometry.gap}
 
 
 def _blade_half_gap(scene: Scene, d: mujoco.MjData) -> float:
