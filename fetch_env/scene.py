@@ -192,6 +192,30 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
     """
     pieces = tuple(pieces)
     geometry = geometry or Geometry()
+    stage_xy = _check_pieces_fit(pieces, geometry)
+    pose = _clamp_pose(pieces, geometry, stage_xy)
+    mujoco.mj_setCacheCapacity(mujoco.mj_getCache(), 0)  # again, in case a caller re-enabled it
+    spec = _base_spec(pieces, geometry, pose, timestep, impratio)
+    solref = contact_solref(geometry.contact_timeconst, spec.option.timestep)
+    for geom in spec.geoms:
+        geom.solref = solref
+    plate = spec.geom("plate")
+    plate.friction = [pieces[0].material.plate_mu, 0.005, 0.0001]
+    for i, p in enumerate(pieces):
+        _add_piece(spec, i, p, solref)
+    with warnings.catch_warnings():
+        # MuJoCo warns that a trilinear flex "has no equality constraints or passive forces"
+        # although its elasticity is active (checked in tests/test_viscoelastic.py).
+        warnings.filterwarnings("ignore", message=".*no equality constraints or passive")
+        model = spec.compile()
+    scene = Scene(model=model, pieces=pieces, geometry=geometry, pose=pose)
+    _look_up_ids(scene)
+    return scene
+
+
+def _check_pieces_fit(pieces: tuple[Piece, ...], geometry: Geometry) -> tuple[float, float]:
+    """Refuse pieces that are not ``Piece``, overlap, or do not fit between and under the
+    blades; returns the stage's (x, y) over the plate: the middle of the pieces' extent."""
     for i, p in enumerate(pieces):
         require(isinstance(p, Piece), f"pieces[{i}]", p, "a Piece")
     check_no_overlap(pieces)
@@ -207,14 +231,24 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         raise InvalidParameterError(
             f"pieces are {tallest:.4f} m tall, too tall for the end-effector: the hinge is "
             f"{geometry.hinge_height:.4f} m above the plate (blade_length + tip_clearance)")
+    return stage_xy
+
+
+def _clamp_pose(pieces: tuple[Piece, ...], geometry: Geometry,
+                stage_xy: tuple[float, float]) -> PoseInfo:
+    """The open pose over ``pieces``: faces ``geometry.gap`` from their sides, ``L`` down to
+    their mass-weighted centroid height."""
     offset = _face_offset(pieces, geometry, stage_xy[1])
     masses = np.array([p.mass for p in pieces])
     z_centroid = float(masses @ np.array([p.centre[2] for p in pieces]) / masses.sum())
-    pose = PoseInfo(L=geometry.hinge_height - z_centroid, theta_0=0.0, theta_open=0.0,
+    return PoseInfo(L=geometry.hinge_height - z_centroid, theta_0=0.0, theta_open=0.0,
                     theta_closed=math.atan2(offset, geometry.blade_length), face_offset=offset,
                     stage_xy=stage_xy, hinge_height=geometry.hinge_height)
 
-    mujoco.mj_setCacheCapacity(mujoco.mj_getCache(), 0)  # again, in case a caller re-enabled it
+
+def _base_spec(pieces: tuple[Piece, ...], geometry: Geometry, pose: PoseInfo,
+               timestep: float | None, impratio: float | None) -> mujoco.MjSpec:
+    """The base MJCF with its options set and the stage and blades placed and sized."""
     xml = resources.files("fetch_env").joinpath("assets", BASE_XML).read_text()
     spec = mujoco.MjSpec.from_string(xml)
     if timestep is not None:
@@ -224,7 +258,8 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
     elif len(pieces) > 1:
         spec.option.impratio = MULTI_PIECE_IMPRATIO
     stage = spec.body("stage")
-    stage.pos = [stage_xy[0], stage_xy[1], geometry.hinge_height]
+    stage.pos = [pose.stage_xy[0], pose.stage_xy[1], geometry.hinge_height]
+    offset = pose.face_offset
     for side, sign in (("left", -1.0), ("right", 1.0)):
         blade = spec.geom(f"blade_{side}")
         blade.size = [geometry.blade_width / 2, BLADE_HALF_THICKNESS, geometry.blade_length / 2]
@@ -239,41 +274,38 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         # different first-contact transient, and a clamp near the slip limit can end
         # differently (measured: a 0.045 rad fetch of the default cube).
         spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_SLEEP)
-    solref = contact_solref(geometry.contact_timeconst, spec.option.timestep)
-    for geom in spec.geoms:
-        geom.solref = solref
-    plate = spec.geom("plate")
-    plate.friction = [pieces[0].material.plate_mu, 0.005, 0.0001]
+    return spec
 
-    for i, p in enumerate(pieces):
-        body = spec.worldbody.add_body(name=f"piece_{i}", pos=p.centre.tolist())
-        count = MESH_COUNT[p.shape]
-        ext = p.extents
-        flex = body.make_flex(
-            f"piece_{i}", type="grid" if p.shape == "cube" else "ellipsoid", dim=3,
-            dof="trilinear", count=[count] * 3, spacing=(ext / (count - 1)).tolist(),
-            radius=0.0, mass=p.mass)
-        mat = p.material
-        flex.young = simulated_young(p, spec.option.timestep)
-        flex.poisson = mat.poisson
-        if mat.yield_strain > 0:
-            flex.stressyield = [mat.yield_strain, 0.0]
-        # priority 1 > blades (0): food-spoon contacts take this coefficient, exactly mu.
-        flex.friction = [mat.mu, 0.005, 0.0001]
-        flex.priority = 1
-        flex.contype = 1
-        flex.conaffinity = 7
-        flex.condim = 3
-        flex.selfcollide = mujoco.mjtFlexSelf.mjFLEXSELF_NONE
-        flex.solref = solref
-        flex.solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
-        flex.rgba = _colour(mat.young)
-    with warnings.catch_warnings():
-        # MuJoCo warns that a trilinear flex "has no equality constraints or passive forces"
-        # although its elasticity is active (checked in tests/test_viscoelastic.py).
-        warnings.filterwarnings("ignore", message=".*no equality constraints or passive")
-        model = spec.compile()
-    scene = Scene(model=model, pieces=pieces, geometry=geometry, pose=pose)
+
+def _add_piece(spec: mujoco.MjSpec, i: int, p: Piece, solref: list[float]) -> None:
+    """Add piece ``i`` as a trilinear flex (one cell) with its material and contact settings."""
+    body = spec.worldbody.add_body(name=f"piece_{i}", pos=p.centre.tolist())
+    count = MESH_COUNT[p.shape]
+    ext = p.extents
+    flex = body.make_flex(
+        f"piece_{i}", type="grid" if p.shape == "cube" else "ellipsoid", dim=3,
+        dof="trilinear", count=[count] * 3, spacing=(ext / (count - 1)).tolist(),
+        radius=0.0, mass=p.mass)
+    mat = p.material
+    flex.young = simulated_young(p, spec.option.timestep)
+    flex.poisson = mat.poisson
+    if mat.yield_strain > 0:
+        flex.stressyield = [mat.yield_strain, 0.0]
+    # priority 1 > blades (0): food-spoon contacts take this coefficient, exactly mu.
+    flex.friction = [mat.mu, 0.005, 0.0001]
+    flex.priority = 1
+    flex.contype = 1
+    flex.conaffinity = 7
+    flex.condim = 3
+    flex.selfcollide = mujoco.mjtFlexSelf.mjFLEXSELF_NONE
+    flex.solref = solref
+    flex.solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
+    flex.rgba = _colour(mat.young)
+
+
+def _look_up_ids(scene: Scene) -> None:
+    """Fill ``scene.ids`` and ``scene.piece_flex`` by name from the compiled model."""
+    model = scene.model
     for kind, names in ((mujoco.mjtObj.mjOBJ_JOINT, ("hinge_left", "hinge_right", "lift")),
                         (mujoco.mjtObj.mjOBJ_ACTUATOR, ("servo_left", "servo_right",
                                                         "servo_lift")),
@@ -282,8 +314,7 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         for name in names:
             scene.ids[name] = mujoco.mj_name2id(model, kind, name)
     scene.piece_flex = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, f"piece_{i}")
-                        for i in range(len(pieces))]
-    return scene
+                        for i in range(len(scene.pieces))]
 
 
 def contact_solref(timeconst: float, timestep: float) -> list[float]:
