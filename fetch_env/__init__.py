@@ -6,6 +6,13 @@ only when an env is made)::
     import gymnasium as gym
     import fetch_env  # noqa: F401  (or gym.make("fetch_env:FoodFetch-Block-v0"))
     env = gym.make("FoodFetch-Block-v0", estimator="oracle")
+
+The package itself exports only :data:`ENV_IDS`, so that importing it stays light; the
+library lives in its modules: :mod:`fetch_env.env` (the environments and their action and
+observation helpers), :mod:`fetch_env.controller` (``FetchSimulator``, ``FetchAction``: the
+fetch and the probe experiments with their traces), :mod:`fetch_env.scene` (``Geometry``,
+``build_scene``), :mod:`fetch_env.layouts` and :mod:`fetch_env.materials` (pieces and
+foods), :mod:`fetch_env.probes` (the reset probes) and :mod:`fetch_env.errors`.
 """
 
 from __future__ import annotations
@@ -17,7 +24,10 @@ import os as _os
 if not _os.environ.get("DISPLAY") and not _os.environ.get("WAYLAND_DISPLAY"):
     _os.environ.setdefault("MUJOCO_GL", "egl")
 
-from gymnasium.envs.registration import register, registry
+from gymnasium.envs.registration import register as _register
+from gymnasium.envs.registration import registry as _registry
+
+__all__ = ["ENV_IDS"]
 
 # id -> entry point; every id is one fetch per episode (docstrings in fetch_env/env.py).
 ENV_IDS: dict[str, str] = {
@@ -28,5 +38,5 @@ ENV_IDS: dict[str, str] = {
 }
 
 for _id, _entry in ENV_IDS.items():
-    if _id not in registry:  # re-importing (e.g. in a forked worker) must not warn
-        register(id=_id, entry_point=_entry, disable_env_checker=False)
+    if _id not in _registry:  # re-importing (e.g. in a forked worker) must not warn
+        _register(id=_id, entry_point=_entry, disable_env_checker=False)
