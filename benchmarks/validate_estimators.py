@@ -40,6 +40,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from estimators.calibration import (
+    ERROR_INPUTS,
+    Calibration,
+    ErrorRow,
+    fit_calibration,
+    fit_error_model,
+)
+from estimators.errors import EstimationError
 from fetch_env.food_space import (
     REPORTING_SEED,
     STIFF_YOUNG_RANGE,
@@ -55,9 +63,12 @@ from fetch_env.probes import (
     PROBE_CALIBRATIONS,
     PROBE_PRESETS,
     PROBE_SYSTEMATIC_SD,
+    ProbeOutcome,
+    apply_calibration,
     run_probes,
     true_parameters_exact,
 )
+from fetch_env.spaces import VISCO_NAMES
 
 SETS = ("tuning", "reporting", "corners", "stiff")
 
@@ -96,6 +107,7 @@ def measure(food: Food, preset: str, noise: float, seed: int, calibrate: bool = 
         "reliable": out.reliable,
         "warnings": out.warnings,
         "uncalibrated": out.details.get("uncalibrated"),
+        "diagnostics": out.details.get("diagnostics", {}),
         "wall_probes": out.wall_time,
         "wall_fits": out.details.get("wall_fits", math.nan),
         "wall_total": time.perf_counter() - t0,
@@ -273,22 +285,110 @@ def calibrate(records: list[dict[str, Any]], sd_now: dict[str, float],
     return out
 
 
-def _fit_calibration(run: Path, preset: str) -> int:
-    """Fit ``preset``'s calibration on a run's records and write it into the package."""
-    from estimators.calibration import fit_calibration
-
-    data = json.loads(run.read_text())
-    if data["meta"].get("calibration") is not None or data["meta"]["set"] != "tuning":
-        raise SystemExit(f"{run}: fit a calibration on an uncalibrated tuning run")
-    foods = [(r["food"]["shape"], r["food"]["size"], r["estimate"], r["truth"])
-             for r in data["records"] if "crash" not in r]
-    cal = fit_calibration(foods, source=f"{run.name} ({data['meta']['set']} set, seed "
-                                        f"{data['meta']['seed']}, preset {preset})")
-    table = json.loads(CALIBRATION_FILE.read_text()) if CALIBRATION_FILE.exists() else {}
-    table[preset] = cal.to_dict()
-    _write_atomic(CALIBRATION_FILE, json.dumps(table, indent=1) + "\n")
+def _fit_calibration(runs: list[Path], preset: str, check: bool) -> int:
+    """Fit ``preset``'s calibration on the first run's records and its error model on all
+    runs', and write them into the package; or, with ``check``, print what an 8-fold
+    cross-validation over the foods gives instead (coverage, reliability per run)."""
+    data = [json.loads(run.read_text()) for run in runs]
+    for run, d in zip(runs, data, strict=True):
+        if d["meta"]["set"] != "tuning" or d["meta"]["preset"] != preset:
+            raise SystemExit(f"{run}: fit a calibration on tuning runs of preset {preset!r}")
+    if data[0]["meta"].get("calibration") is not None or data[0]["meta"]["noise"] != 0:
+        raise SystemExit(f"{runs[0]}: fit a calibration on an uncalibrated run without noise")
+    records = [d["records"] for d in data]
+    if check:
+        for run, held in zip(runs, cross_validate(records[0], records), strict=True):
+            del held["records"]
+            print(table(held, f"{run.name}, 8-fold cross-validation"))
+        return 0
+    meta = data[0]["meta"]
+    source = (f"{', '.join(run.name for run in runs)} ({meta['set']} set, seed {meta['seed']}, "
+              f"{meta['n']} foods, preset {preset})")
+    cal = fit_models(records[0], records, source=source)
+    table_ = json.loads(CALIBRATION_FILE.read_text()) if CALIBRATION_FILE.exists() else {}
+    table_[preset] = cal.to_dict()
+    _write_atomic(CALIBRATION_FILE, json.dumps(table_, indent=1) + "\n")
     print(json.dumps(cal.to_dict(), indent=1))
     return 0
+
+
+def error_rows(records: list[dict[str, Any]], calibration: Calibration
+               ) -> list[tuple[int, ErrorRow]]:
+    """``(food index, error-model row)`` of each finished record: the probe's own
+    (uncalibrated) estimate and diagnostics, and the residual ``log(estimate / truth)`` of g1,
+    tau1 and mu after ``calibration``."""
+    rows = []
+    for r in records:
+        if "crash" in r or not r.get("diagnostics"):
+            continue
+        own = r.get("uncalibrated") or r["estimate"]
+        f = r["food"]
+        try:
+            fixed, _ = calibration.apply(f["shape"], f["size"], own)
+        except EstimationError:
+            continue
+        resid = {k: math.log(fixed[k] / r["truth"][k]) if fixed[k] > 0 else math.nan
+                 for k in ERROR_INPUTS}
+        rows.append((int(f["index"]), (f["shape"], f["size"], own, r["diagnostics"], resid)))
+    return rows
+
+
+def _uncalibrated_foods(records: list[dict[str, Any]]
+                        ) -> list[tuple[str, float, dict[str, float], dict[str, float]]]:
+    return [(r["food"]["shape"], r["food"]["size"], r.get("uncalibrated") or r["estimate"],
+             r["truth"]) for r in records if "crash" not in r]
+
+
+def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
+               source: str = "", keep: set[int] | None = None) -> Calibration:
+    """The calibration fitted on ``cal_records`` (a run without noise) and its error model on
+    every run in ``runs`` (e.g. without and with noise), using only foods in ``keep``."""
+    def use(r: dict[str, Any]) -> bool:
+        return "crash" not in r and (keep is None or r["food"]["index"] in keep)
+
+    cal = fit_calibration(_uncalibrated_foods([r for r in cal_records if use(r)]),
+                          source=source)
+    rows = [row for run in runs for i, row in error_rows([r for r in run if use(r)], cal)]
+    em = fit_error_model(rows, source=source)
+    return Calibration(cal.coefficients, cal.n_foods, cal.source, em)
+
+
+def cross_validate(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
+                   folds: int = 8, seed: int = 0) -> list[dict[str, Any]]:
+    """Held-out records of each run: the foods split into ``folds`` (seeded), each fold's
+    records recomputed with the calibration and error model fitted on the other folds
+    (:func:`held_out_record`)."""
+    index = sorted({r["food"]["index"] for r in cal_records})
+    fold_of = dict(zip(np.random.default_rng(seed).permutation(index),
+                       np.arange(len(index)) % folds, strict=True))
+    out: list[list[dict[str, Any]]] = [[] for _ in runs]
+    for k in range(folds):
+        keep = {i for i, f in fold_of.items() if f != k}
+        model = fit_models(cal_records, runs, keep=keep)
+        for j, run in enumerate(runs):
+            out[j] += [held_out_record(r, model) for r in run
+                       if "crash" not in r and fold_of.get(r["food"]["index"]) == k]
+    return [summarize(run) | {"records": run} for run in out]
+
+
+def held_out_record(r: dict[str, Any], model: Calibration) -> dict[str, Any]:
+    """A record as the probes would have written it with ``model`` (calibration, intervals
+    and ``reliable`` from :func:`fetch_env.probes.apply_calibration`)."""
+    own = r.get("uncalibrated") or r["estimate"]
+    out = ProbeOutcome(estimates=dict(own), visco_valid=r["visco_valid"],
+                       friction_valid=r["friction_valid"], wall_time=r["wall_probes"],
+                       piece_index=0, details={"diagnostics": r.get("diagnostics", {})},
+                       intervals={k: tuple(v) for k, v in r["interval"].items()})
+    if r.get("uncalibrated"):  # a calibrated run: move its intervals back first
+        for k in VISCO_NAMES:
+            ratio = own[k] / r["estimate"][k]
+            out.intervals[k] = tuple(v * ratio for v in out.intervals[k])
+    apply_calibration(r["food"]["shape"], r["food"]["size"], model, out)
+    rec = dict(r, estimate=out.estimates, interval={k: list(v) for k, v in out.intervals.items()},
+               reliable=out.reliable)
+    rec["error"] = {k: _rel(out.estimates[k], r["truth"][k]) for k in PARAM_NAMES}
+    rec["covered"] = {k: _covers(out.intervals.get(k), r["truth"][k]) for k in PARAM_NAMES}
+    return rec
 
 
 def _done_indices(jsonl: Path) -> dict[int, dict[str, Any]]:
@@ -317,16 +417,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--resume", action="store_true", help="skip foods already in the .jsonl")
     p.add_argument("--no-calibration", action="store_true",
                    help="leave the preset's shipped calibration off")
-    p.add_argument("--fit-calibration", type=Path, default=None, metavar="JSON",
+    p.add_argument("--fit-calibration", type=Path, nargs="+", default=None, metavar="JSON",
                    help="fit the preset's calibration on a finished run's records (a tuning "
-                   "run made with --no-calibration), write it to the package's calibration "
-                   "file and exit")
+                   "run made with --no-calibration and no noise) and its error model on "
+                   "those of every run named (e.g. that run and one with --noise 0.01), "
+                   "write them to the package's calibration file and exit")
+    p.add_argument("--cross-validate", action="store_true",
+                   help="with --fit-calibration: print the 8-fold cross-validated summary of "
+                   "each run instead of writing anything")
     p.add_argument("--calibrate", type=Path, default=None, metavar="JSON",
                    help="print the systematic sds that give 95 %% coverage on a finished "
                    "run's records (a tuning run) and exit")
     args = p.parse_args(argv)
     if args.fit_calibration is not None:
-        return _fit_calibration(args.fit_calibration, args.preset)
+        return _fit_calibration(args.fit_calibration, args.preset, args.cross_validate)
     if args.calibrate is not None:
         data = json.loads(args.calibrate.read_text())
         used = data["meta"].get("systematic_sd", dict.fromkeys(PARAM_NAMES, 0.0))

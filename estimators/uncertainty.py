@@ -38,8 +38,8 @@ from estimators.relaxation import (
 )
 from estimators.sls import ClampGeometry
 
-__all__ = ["INTERVAL_SCALE", "WINDOW_SHIFTS", "HoldWithIntervals", "hold_with_intervals",
-           "log_interval"]
+__all__ = ["INTERVAL_SCALE", "WINDOW_SHIFTS", "HoldWithIntervals", "hold_diagnostics",
+           "hold_with_intervals", "log_interval"]
 
 Z95 = 1.959963984540054
 INTERVAL_SCALE = 1.0
@@ -58,6 +58,9 @@ class HoldWithIntervals:
         sd_noise, sd_model: name -> standard deviation of the log estimate from noise and
             from the window shifts.
         alternates: the estimates on the shifted windows (those that gave one).
+        diagnostics: what the trace says about how well eq. 6 fits it
+            (:func:`hold_diagnostics`), the inputs of an error model
+            (:class:`estimators.calibration.ErrorModel`).
     """
 
     estimate: HoldEstimate
@@ -65,6 +68,7 @@ class HoldWithIntervals:
     sd_noise: dict[str, float]
     sd_model: dict[str, float]
     alternates: list[HoldEstimate] = field(default_factory=list)
+    diagnostics: dict[str, float] = field(default_factory=dict)
 
 
 def log_interval(value: float, sd_log: float, z: float = Z95) -> tuple[float, float]:
@@ -80,6 +84,39 @@ def _lag1(r: np.ndarray) -> float:
     r = r - r.mean()
     den = float(r @ r)
     return float(np.clip((r[1:] @ r[:-1]) / den, 0.0, 0.95)) if den > 0 else 0.0
+
+
+def hold_diagnostics(est: HoldEstimate, t: np.ndarray, m: np.ndarray, t_start: float
+                     ) -> dict[str, float]:
+    """How far the hold past ``t_start`` is from one exponential, in numbers an error model
+    can use (all dimensionless):
+
+    * ``rho``: lag-1 autocorrelation of the residuals (a bent trace leaves runs of one sign);
+    * ``log_rms``: log of the residuals' rms over the relaxing part ``|A|``;
+    * ``end_drift``: the residuals' mean over the last fifth of the hold less that over the
+      fifth before it, over ``|A|`` (a drift the exponential cannot follow ends the hold
+      with a slope of the residuals);
+    * ``log_tau_span``: log of the fitted decay time over the hold's span (a decay slow
+      against the hold is extrapolated, a fast one leaves few samples);
+    * ``log_relax``: log of the relaxing share ``|A| / (M_inf + |A|)`` of the held moment.
+    """
+    hf = est.fit
+    sel = t > t_start
+    s, y = t[sel] - t_start, m[sel]
+    resid = y - (hf.M_inf + hf.A * np.exp(-hf.lam * s))
+    a = max(abs(hf.A), 1e-300)
+    span = float(s[-1]) if s.size else 0.0
+    late = s > 0.8 * span
+    before = (s > 0.6 * span) & ~late
+    drift = (float(resid[late].mean() - resid[before].mean()) / a
+             if late.any() and before.any() else 0.0)
+    return {
+        "rho": _lag1(resid),
+        "log_rms": math.log(max(float(np.sqrt(np.mean(resid**2))) / a, 1e-9)),
+        "end_drift": drift,
+        "log_tau_span": math.log(max(est.tau1, 1e-9) / max(span, 1e-9)),
+        "log_relax": math.log(max(a / max(abs(hf.M_inf) + a, 1e-300), 1e-9)),
+    }
 
 
 def _noise_sd(est: HoldEstimate, t: np.ndarray, m: np.ndarray, geometry: ClampGeometry,
@@ -170,4 +207,5 @@ def hold_with_intervals(
                                   f"sd >= 0, got {v!r}")
     intervals = {k: log_interval(getattr(est, k), math.hypot(
         scale * math.hypot(noise[k], model[k]), floor.get(k, 0.0))) for k in _NAMES}
-    return HoldWithIntervals(est, intervals, noise, model, alternates)
+    diag = hold_diagnostics(est, tt, mm, t_d + settle)
+    return HoldWithIntervals(est, intervals, noise, model, alternates, diag)
