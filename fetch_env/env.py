@@ -12,7 +12,8 @@ from __future__ import annotations
 import math
 import time
 from collections import OrderedDict
-from typing import Any, ClassVar
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -56,6 +57,9 @@ from fetch_env.spaces import (
     encode_observation,
     physical_to_action,
 )
+
+if TYPE_CHECKING:
+    from estimators.calibration import Calibration
 
 __all__ = [
     "ACTION_NAMES",
@@ -259,6 +263,55 @@ def _docstring(title: str, description: str, layout: str) -> str:
             f"    Scene sampled at reset (``fetch_env.env_scenes``):\n{ranges}\n{body}")
 
 
+def _check_reward_options(fetch_weight: float, deformation_weight: float, time_weight: float,
+                          safe_log_strain: float, settling_tolerance: float,
+                          max_hold: float) -> None:
+    """Refuse negative or non-finite reward weights and out-of-range strain and hold settings."""
+    for name, value in (("fetch_weight", fetch_weight),
+                        ("deformation_weight", deformation_weight),
+                        ("time_weight", time_weight)):
+        require(math.isfinite(value) and value >= 0, name, value, "finite and >= 0")
+    require(math.isfinite(safe_log_strain) and 0 <= safe_log_strain <= 2,
+            "safe_log_strain", safe_log_strain, "in [0, 2]")
+    require(0 < settling_tolerance < 1, "settling_tolerance", settling_tolerance,
+            "in (0, 1)")
+    require(0 <= max_hold <= 60, "max_hold", max_hold, "in [0, 60] s")
+
+
+def _check_render_options(render_modes: list[str], render_mode: str | None, width: int,
+                          height: int, camera: str) -> None:
+    """Refuse an unknown render mode or camera and frame sizes outside [16, 4096] px."""
+    require(render_mode is None or render_mode in render_modes,
+            "render_mode", render_mode, f"None or one of {render_modes}")
+    require(isinstance(width, int) and 16 <= width <= 4096, "width", width,
+            "an int in [16, 4096]")
+    require(isinstance(height, int) and 16 <= height <= 4096, "height", height,
+            "an int in [16, 4096]")
+    require(camera in ("side", "front"), "camera", camera, "'side' or 'front'")
+
+
+def _check_probe_options(probe_hold: float, probe_omega: float, probe_strain: float,
+                         probe_time_scale: float, probe_time_growth: float) -> None:
+    """Refuse reset-probe settings outside the ranges the env documents."""
+    require(0.05 <= probe_hold <= 60, "probe_hold", probe_hold, "in [0.05, 60] s")
+    require(0.01 <= probe_omega <= 2, "probe_omega", probe_omega, "in [0.01, 2] rad/s")
+    require(0 < probe_strain <= 0.3, "probe_strain", probe_strain, "in (0, 0.3]")
+    require(1 <= probe_time_scale <= 50, "probe_time_scale", probe_time_scale, "in [1, 50]")
+    require(0 <= probe_time_growth <= 0.5, "probe_time_growth", probe_time_growth,
+            "in [0, 0.5]")
+
+
+def _check_fetch_physics(fetch_timestep: float, fetch_impratio: float | None) -> None:
+    """Refuse a fetch step outside [1, 10] ms and an impratio that is not None or in [1, 1e4]."""
+    require(math.isfinite(fetch_timestep) and 0.001 <= fetch_timestep <= 0.01,
+            "fetch_timestep", fetch_timestep, "in [0.001, 0.01] s")
+    require(fetch_impratio is None or (isinstance(fetch_impratio, (int, float))
+                                       and not isinstance(fetch_impratio, bool)
+                                       and math.isfinite(fetch_impratio)
+                                       and 1 <= fetch_impratio <= 1e4),
+            "fetch_impratio", fetch_impratio, "None or in [1, 1e4]")
+
+
 class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
     __doc__ = _docstring(
         "Fetch soft food with a two-half-spoon end-effector (any layout).",
@@ -302,37 +355,14 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
     ) -> None:
         require(layout in LAYOUTS, "layout", layout, f"one of {LAYOUTS}")
         require(estimator in ESTIMATORS, "estimator", estimator, f"one of {ESTIMATORS}")
-        for name, value in (("fetch_weight", fetch_weight),
-                            ("deformation_weight", deformation_weight),
-                            ("time_weight", time_weight)):
-            require(math.isfinite(value) and value >= 0, name, value, "finite and >= 0")
-        require(math.isfinite(safe_log_strain) and 0 <= safe_log_strain <= 2,
-                "safe_log_strain", safe_log_strain, "in [0, 2]")
-        require(0 < settling_tolerance < 1, "settling_tolerance", settling_tolerance,
-                "in (0, 1)")
-        require(0 <= max_hold <= 60, "max_hold", max_hold, "in [0, 60] s")
-        require(render_mode is None or render_mode in self.metadata["render_modes"],
-                "render_mode", render_mode, f"None or one of {self.metadata['render_modes']}")
-        require(isinstance(width, int) and 16 <= width <= 4096, "width", width,
-                "an int in [16, 4096]")
-        require(isinstance(height, int) and 16 <= height <= 4096, "height", height,
-                "an int in [16, 4096]")
-        require(camera in ("side", "front"), "camera", camera, "'side' or 'front'")
+        _check_reward_options(fetch_weight, deformation_weight, time_weight, safe_log_strain,
+                              settling_tolerance, max_hold)
+        _check_render_options(self.metadata["render_modes"], render_mode, width, height, camera)
         # FetchAction and ProbeConfig validate the times and distances before any physics.
         FetchAction(hold=hold, lift_height=lift_height, air_hold=air_hold, settle=settle)
-        require(0.05 <= probe_hold <= 60, "probe_hold", probe_hold, "in [0.05, 60] s")
-        require(0.01 <= probe_omega <= 2, "probe_omega", probe_omega, "in [0.01, 2] rad/s")
-        require(0 < probe_strain <= 0.3, "probe_strain", probe_strain, "in (0, 0.3]")
-        require(1 <= probe_time_scale <= 50, "probe_time_scale", probe_time_scale, "in [1, 50]")
-        require(0 <= probe_time_growth <= 0.5, "probe_time_growth", probe_time_growth,
-                "in [0, 0.5]")
-        require(math.isfinite(fetch_timestep) and 0.001 <= fetch_timestep <= 0.01,
-                "fetch_timestep", fetch_timestep, "in [0.001, 0.01] s")
-        require(fetch_impratio is None or (isinstance(fetch_impratio, (int, float))
-                                           and not isinstance(fetch_impratio, bool)
-                                           and math.isfinite(fetch_impratio)
-                                           and 1 <= fetch_impratio <= 1e4),
-                "fetch_impratio", fetch_impratio, "None or in [1, 1e4]")
+        _check_probe_options(probe_hold, probe_omega, probe_strain, probe_time_scale,
+                             probe_time_growth)
+        _check_fetch_physics(fetch_timestep, fetch_impratio)
 
         self.layout = layout
         self.estimator = estimator
@@ -352,19 +382,27 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
                                         hold_time_scale=probe_time_scale,
                                         hold_time_growth=probe_time_growth)
         self.geometry = Geometry(contact_timeconst=contact_timeconst)  # validates it
-        require(isinstance(probe_calibrated, bool), "probe_calibrated", probe_calibrated,
-                "True or False")
-        # The shipped calibration was fitted for the default probes; other settings run
-        # uncalibrated (info["probe_calibration"] says which).
-        default_probes = (self.probe_config == PROBE_PRESETS["env"]
-                          and self.geometry == Geometry())
-        self.probe_calibration = (PROBE_CALIBRATIONS.get("env")
-                                  if probe_calibrated and default_probes else None)
+        self.probe_calibration = self._calibration_for(probe_calibrated)
         self.fetch_timestep = float(fetch_timestep)
         self.fetch_impratio = None if fetch_impratio is None else float(fetch_impratio)
         self.render_mode = render_mode
         self.width, self.height, self.camera = width, height, camera
+        self._init_spaces_and_state()
 
+    def _calibration_for(self, probe_calibrated: bool) -> Calibration | None:
+        """The shipped probe calibration where asked for and fitted for these probes, else None.
+
+        The calibration was fitted for the default probes; other settings run uncalibrated
+        (``info["probe_calibration"]`` says which).
+        """
+        require(isinstance(probe_calibrated, bool), "probe_calibrated", probe_calibrated,
+                "True or False")
+        default_probes = (self.probe_config == PROBE_PRESETS["env"]
+                          and self.geometry == Geometry())
+        return PROBE_CALIBRATIONS.get("env") if probe_calibrated and default_probes else None
+
+    def _init_spaces_and_state(self) -> None:
+        """Gymnasium's spaces and the episode's state before the first reset."""
         self.action_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
         self.observation_space = spaces.Box(-OBS_BOUND, OBS_BOUND, (len(OBS_NAMES),), np.float32)
         self._init_runtime()
@@ -612,6 +650,16 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
             time.sleep(1.0 / self.metadata["render_fps"])
 
 
+def _with_layout(default: str) -> Callable[..., None]:
+    """An ``__init__`` for a registered id's class: :class:`FoodFetchEnv`'s with ``layout``
+    defaulting to the id's scene family (every other argument passed through)."""
+
+    def __init__(self: FoodFetchEnv, layout: str = default, **kwargs: Any) -> None:
+        FoodFetchEnv.__init__(self, layout=layout, **kwargs)
+
+    return __init__
+
+
 class FoodFetchBlockEnv(FoodFetchEnv):
     __doc__ = _docstring(
         "FoodFetch-Block-v0: fetch one soft block.",
@@ -620,8 +668,7 @@ class FoodFetchBlockEnv(FoodFetchEnv):
         "on the project's 2-core VM, docs/env_results.md).",
         "block")
 
-    def __init__(self, layout: str = "block", **kwargs: Any) -> None:
-        super().__init__(layout=layout, **kwargs)
+    __init__ = _with_layout("block")
 
 
 class FoodFetchRowEnv(FoodFetchEnv):
@@ -630,8 +677,7 @@ class FoodFetchRowEnv(FoodFetchEnv):
         "Two or three cubes side by side across the clamp direction, at one of the study's "
         "spacings (1, 0.5, 0.3, 0.1 mm); the study found tighter rows fetched better.", "row")
 
-    def __init__(self, layout: str = "row", **kwargs: Any) -> None:
-        super().__init__(layout=layout, **kwargs)
+    __init__ = _with_layout("row")
 
 
 class FoodFetchTwoRowsEnv(FoodFetchEnv):
@@ -640,8 +686,7 @@ class FoodFetchTwoRowsEnv(FoodFetchEnv):
         "Two rows of cubes, 1 mm apart along the clamp and 0.01 mm across, all 200 MPa "
         "(hard) or all 0.2 MPa (soft): the study's soft-against-hard comparison.", "two_rows")
 
-    def __init__(self, layout: str = "two_rows", **kwargs: Any) -> None:
-        super().__init__(layout=layout, **kwargs)
+    __init__ = _with_layout("two_rows")
 
 
 class FoodFetchDicedEnv(FoodFetchEnv):
@@ -651,7 +696,6 @@ class FoodFetchDicedEnv(FoodFetchEnv):
         "levels (200, 40, 5, 0.15, 0.0123 MPa) packed on a jittered grid; hard pieces tend to "
         "escape the clamp.", "diced")
 
-    def __init__(self, layout: str = "diced", **kwargs: Any) -> None:
-        super().__init__(layout=layout, **kwargs)
+    __init__ = _with_layout("diced")
 
 
