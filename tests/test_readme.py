@@ -1,0 +1,78 @@
+"""The README a user reads: short, no development history, tables that are the committed
+data, links that lead somewhere, and a quickstart that runs."""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import fetch_env
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+
+
+def _tables_script():
+    path = ROOT / "scripts" / "make_readme_tables.py"
+    spec = importlib.util.spec_from_file_location("make_readme_tables", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_readme_is_at_most_12_kb() -> None:
+    assert README.stat().st_size <= 12288
+
+
+def test_readme_tells_no_development_history() -> None:
+    """No "session 12", "sessions 8-14" and the like (the history is CHANGELOG.md's)."""
+    hits = [line for line in README.read_text().splitlines()
+            if re.search(r"sessions? ?[0-9]", line, re.IGNORECASE)]
+    assert hits == []
+
+
+@pytest.mark.parametrize("name", ["physics", "agents", "speed"])
+def test_readme_results_table_is_the_committed_json(name: str) -> None:
+    """Each generated table is what scripts/make_readme_tables.py makes from the committed
+    JSON now (rerun the script after a new benchmark run; never edit a table by hand)."""
+    tables = _tables_script()
+    assert tables.block(README.read_text(), name) == tables.render(name).strip()
+
+
+def _relative_links(text: str) -> list[str]:
+    targets = re.findall(r"\]\(([^)\s]+)\)", text)
+    targets += re.findall(r"^\[[^\]]+\]:\s*(\S+)", text, re.MULTILINE)
+    return [t for t in targets if not re.match(r"[a-z][a-z0-9+.-]*:", t) and
+            not t.startswith("#")]
+
+
+def test_every_relative_link_in_the_readme_leads_to_a_file() -> None:
+    links = _relative_links(README.read_text())
+    assert links, "the README links into the documentation"
+    missing = [t for t in links if not (ROOT / t.split("#", 1)[0]).exists()]
+    assert missing == []
+
+
+def test_every_registered_env_id_is_in_the_readme_with_its_page() -> None:
+    text = README.read_text()
+    for env_id in fetch_env.ENV_IDS:
+        assert f"[{env_id}](docs/environments/{env_id}.md)" in text
+
+
+@pytest.mark.slow
+def test_the_readme_quickstart_runs(tmp_path: Path) -> None:
+    """Every Python block of the README runs as written (10-30 s)."""
+    blocks = re.findall(r"```python\n(.*?)```", README.read_text(), re.DOTALL)
+    assert len(blocks) >= 2
+    for i, code in enumerate(blocks):
+        script = tmp_path / f"block{i}.py"
+        script.write_text(code)
+        done = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True,
+                              text=True, timeout=600)
+        assert done.returncode == 0, f"README Python block {i}:\n{done.stderr[-2000:]}"
