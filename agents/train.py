@@ -46,7 +46,7 @@ from typing import Any
 
 import yaml
 
-from agents.cli_common import env_error_line
+from fetch_env.errors import env_error_line
 
 ALGOS: tuple[str, ...] = ("ppo", "sac")
 # Keys of the YAML files that are not arguments of the SB3 constructor.

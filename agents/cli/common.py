@@ -25,14 +25,6 @@ EXTRAS: dict[str, tuple[str, ...]] = {
 }
 
 
-def env_error_line(exc: BaseException) -> str:
-    """The first line of an error raised while building an env, without the suffix
-    gymnasium appends (" was raised from the environment creator for ... with kwargs ...")."""
-    lines = str(exc).strip().splitlines()
-    line = lines[0] if lines else type(exc).__name__
-    return line.split(" was raised from the environment creator")[0]
-
-
 def require_extra(command: str, extra: str) -> None:
     """Stop with a one-line usage error, before any work starts, when ``command`` needs an
     extra that is not installed (the core installs only gymnasium, mujoco, numpy, scipy)."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from agents.cli_common import add_food_options, writable, write_json
+from agents.cli.common import add_food_options, writable, write_json
 
 EXPERIMENT_DEFAULTS = {
     "fetch": (0.045, 0.1, 1.0),

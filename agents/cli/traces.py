@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.cli_common import UsageError, finite, write_json
-from agents.cmd_estimate import NAMES, SIM_CLAMP_WEIGHT, ProbeEstimate, print_report
+from agents.cli.common import UsageError, finite, write_json
+from agents.cli.estimate import NAMES, ProbeEstimate, print_report
 from estimators import (
     EstimationError,
     FrictionEstimate,
@@ -34,6 +34,7 @@ from estimators import (
     estimate_three_step,
     load_traces,
 )
+from fetch_env.study_probes import SIM_CLAMP_WEIGHT
 
 # Options of ``estimate`` that keep their meaning with --traces (argparse dests).
 TRACE_OPTIONS = frozenset({"traces", "L", "theta_0", "probe", "method", "json"})

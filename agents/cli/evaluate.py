@@ -12,15 +12,15 @@ import time
 from pathlib import Path
 from typing import Any
 
-from agents.cli_common import (
+from agents.cli.common import (
     UsageError,
-    env_error_line,
     finite,
     require_extra,
     seed,
     writable,
     write_json,
 )
+from fetch_env.errors import env_error_line
 
 
 def _positive_int(text: str) -> int:

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from agents.cli_common import UsageError, finite, require_extra, seed
+from agents.cli.common import UsageError, finite, require_extra, seed
 
 ENV_HELP = "FoodFetch-Block-v0, -Row-v0, -TwoRows-v0 or -Diced-v0"
 
