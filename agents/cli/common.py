@@ -122,6 +122,15 @@ def add_food_options(p: argparse.ArgumentParser) -> None:
                    help="seed for every random choice (default: 0)")
 
 
+def make_material(args: argparse.Namespace) -> Any:
+    """The :class:`fetch_env.materials.Material` of the food options (validated there)."""
+    from fetch_env.materials import Material
+
+    return Material(young=args.young, poisson=args.poisson, density=args.density, g1=args.g1,
+                    tau1=args.tau1, mu=args.mu, plate_mu=args.plate_mu,
+                    yield_strain=args.yield_strain)
+
+
 def write_json(path: Path, payload: dict[str, Any]) -> None:
     tmp = path.with_name(path.name + ".part")
     try:

@@ -24,7 +24,14 @@ from typing import Any
 
 import numpy as np
 
-from agents.cli.common import UsageError, add_food_options, finite, writable, write_json
+from agents.cli.common import (
+    UsageError,
+    add_food_options,
+    finite,
+    make_material,
+    writable,
+    write_json,
+)
 from fetch_env.probes import nominal_stiffness
 from fetch_env.study_probes import (
     RELAXATION_DEFAULTS,
@@ -34,6 +41,12 @@ from fetch_env.study_probes import (
     run_slip_probe,
     study_elastic_stiffness,
 )
+
+HELP = "run the relaxation and slip probes on a food and estimate K1/K2/B, g1, tau1, mu"
+DESCRIPTION = ("Run the moment-relaxation probe and the induced-slip probe on one food "
+               "piece in the simulator, estimate K1, K2, B (hence g1, tau1) and mu from the "
+               "simulated sensors, and print them against the truth with errors and 95 % "
+               "intervals.")
 
 NAMES = ("K1", "K2", "B", "g1", "tau1", "mu")
 # Where --theta-d is not given, each probe's angle adapts to the piece: its default above,
@@ -66,6 +79,29 @@ class ProbeEstimate:
             out[k] = ev / tv - 1.0 if np.isfinite(tv) and tv != 0 and np.isfinite(ev) else math.nan
         return out
 
+    def add_relaxation(self, est: Any, fit_time: float) -> None:
+        """Take K1, K2, B, g1, tau1, their intervals, R^2 and warnings from a viscoelastic
+        estimate, and its fit facts into ``details["relaxation"]``."""
+        self.estimate.update(K1=est.K1, K2=est.K2, B=est.B, g1=est.g1, tau1=est.tau1)
+        self.interval.update({k: v for k, v in est.intervals.items() if k in NAMES})
+        self.r2_clamp, self.r2_hold = est.r2_clamp, est.r2_hold
+        self.reliable &= est.reliable
+        self.warnings += [f"relaxation probe: {w}" for w in est.warnings]
+        self.details.setdefault("relaxation", {}).update(
+            theta_1=est.theta_1, M_peak=est.M_peak, M_inf=est.M_inf, fit_time=fit_time,
+            method=est.method)
+
+    def add_friction(self, fe: Any) -> None:
+        """Take mu, its interval and warnings from a friction estimate, and its fit facts
+        into ``details["slip"]``."""
+        self.estimate["mu"] = fe.mu
+        self.interval["mu"] = fe.interval
+        self.reliable &= fe.reliable
+        self.warnings += [f"slip probe: {w}" for w in fe.warnings]
+        self.details.setdefault("slip", {}).update(
+            window=list(fe.window), mu_left=fe.mu_left, mu_right=fe.mu_right,
+            n_samples=fe.n_samples)
+
     def to_dict(self) -> dict[str, Any]:
         def num(v: float) -> float | None:
             return float(v) if np.isfinite(v) else None
@@ -81,21 +117,6 @@ class ProbeEstimate:
             "warnings": self.warnings,
             "details": self.details,
         }
-
-
-def make_material(args: argparse.Namespace) -> Any:
-    from fetch_env.materials import Material
-
-    return Material(
-        young=args.young,
-        poisson=args.poisson,
-        density=args.density,
-        g1=args.g1,
-        tau1=args.tau1,
-        mu=args.mu,
-        plate_mu=args.plate_mu,
-        yield_strain=args.yield_strain,
-    )
 
 
 def _check(args: argparse.Namespace) -> None:
@@ -220,9 +241,7 @@ def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
     actions = probe_actions(args, pieces)  # every input is valid past here
     true = {k: math.nan for k in NAMES}
     true.update(g1=material.g1, tau1=material.tau1, mu=material.mu)
-    estimate = {k: math.nan for k in NAMES}
-    interval: dict[str, tuple[float, float]] = {}
-    out = ProbeEstimate(true=true, estimate=estimate, interval=interval)
+    out = ProbeEstimate(true=true, estimate={k: math.nan for k in NAMES}, interval={})
     out.details["settings"] = {
         "method": args.method,
         "noise": args.noise,
@@ -231,67 +250,48 @@ def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
         "probe": args.probe,
     }
     if "relaxation" in actions:
-        a = actions["relaxation"]
-        r = run_relaxation_probe(
-            pieces,
-            a.theta_d,
-            a.omega,
-            a.hold,
-            args.method,
-            args.noise,
-            args.seed,
-            args.clamp_weight,
-        )
-        out.details["relaxation"] = {
-            "action": r["action"].to_dict(),
-            "wall_sim": r["wall_sim"],
-            "max_log_strain": r["max_log_strain"],
-        }
-        est = r["estimate"]
-        if est is None:
-            out.reliable = False
-            out.warnings.append(f"relaxation probe: {r['error']}")
-        else:
-            estimate.update(K1=est.K1, K2=est.K2, B=est.B, g1=est.g1, tau1=est.tau1)
-            interval.update({k: v for k, v in est.intervals.items() if k in NAMES})
-            out.r2_clamp, out.r2_hold = est.r2_clamp, est.r2_hold
-            out.reliable &= est.reliable
-            out.warnings += [f"relaxation probe: {w}" for w in est.warnings]
-            out.details["relaxation"].update(
-                theta_1=est.theta_1,
-                M_peak=est.M_peak,
-                M_inf=est.M_inf,
-                fit_time=r["wall_fit"],
-                method=est.method,
-            )
-        if np.isfinite(material.g1) and material.g1 > 0:
-            _truth_k(pieces, r["action"], material, true, out)
+        _study_relaxation(args, pieces, actions["relaxation"], out)
     if "slip" in actions:
-        a = actions["slip"]
-        s = run_slip_probe(
-            pieces, a.theta_d, a.omega, a.hold, a.slide_time, noise=args.noise, seed=args.seed
-        )
-        out.details["slip"] = {
-            "action": s["action"].to_dict(),
-            "wall_sim": s["wall_sim"],
-            "max_log_strain": s["max_log_strain"],
-        }
-        fe = s["estimate"]
-        if fe is None:
-            out.reliable = False
-            out.warnings.append(f"slip probe: {s['error']}")
-        else:
-            estimate["mu"] = fe.mu
-            interval["mu"] = fe.interval
-            out.reliable &= fe.reliable
-            out.warnings += [f"slip probe: {w}" for w in fe.warnings]
-            out.details["slip"].update(
-                window=list(fe.window),
-                mu_left=fe.mu_left,
-                mu_right=fe.mu_right,
-                n_samples=fe.n_samples,
-            )
+        _study_slip(args, pieces, actions["slip"], out)
     return out
+
+
+def _record_probe(out: ProbeEstimate, name: str, run: dict[str, Any]) -> Any:
+    """Put a study probe's run facts into ``out.details[name]``; its estimate, or None with
+    the reason in the warnings and ``reliable`` False."""
+    out.details[name] = {
+        "action": run["action"].to_dict(),
+        "wall_sim": run["wall_sim"],
+        "max_log_strain": run["max_log_strain"],
+    }
+    if run["estimate"] is None:
+        out.reliable = False
+        out.warnings.append(f"{name} probe: {run['error']}")
+    return run["estimate"]
+
+
+def _study_relaxation(args: argparse.Namespace, pieces: tuple[Any, ...], a: Any,
+                      out: ProbeEstimate) -> None:
+    """The study's relaxation probe into ``out``: K1, K2, B, g1, tau1, their intervals and
+    fit facts, and the elastic-twin truth for K1, K2, B."""
+    r = run_relaxation_probe(pieces, a.theta_d, a.omega, a.hold, args.method, args.noise,
+                             args.seed, args.clamp_weight)
+    est = _record_probe(out, "relaxation", r)
+    if est is not None:
+        out.add_relaxation(est, r["wall_fit"])
+    material = pieces[0].material
+    if np.isfinite(material.g1) and material.g1 > 0:
+        _truth_k(pieces, r["action"], material, out.true, out)
+
+
+def _study_slip(args: argparse.Namespace, pieces: tuple[Any, ...], a: Any,
+                out: ProbeEstimate) -> None:
+    """The study's induced-slip probe into ``out``: mu, its interval and the fit's facts."""
+    s = run_slip_probe(pieces, a.theta_d, a.omega, a.hold, a.slide_time, noise=args.noise,
+                       seed=args.seed)
+    fe = _record_probe(out, "slip", s)
+    if fe is not None:
+        out.add_friction(fe)
 
 
 def _truth_k(pieces: tuple[Any, ...], action: Any, material: Any, true: dict[str, float],
@@ -356,15 +356,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(sub: Any) -> None:
-    p = sub.add_parser(
-        "estimate",
-        help="run the relaxation and slip probes on a food and estimate K1/K2/B, g1, tau1, mu",
-        description="Run the moment-relaxation probe and the induced-slip probe on one food "
-        "piece in the simulator, estimate K1, K2, B (hence g1, tau1) and mu from the simulated "
-        "sensors, and print them against the truth with errors and 95 % intervals.",
-    )
-    add_food_options(p)
+def _clamp_help(p: argparse.ArgumentParser) -> None:
+    """The clamp options' help with the probes' own defaults; --lift-speed hidden."""
     # add_food_options documents simulate's defaults; estimate's probes have their own (from
     # the dicts above, so the help cannot disagree with the code).
     r, s = RELAXATION_DEFAULTS, SLIP_DEFAULTS
@@ -385,6 +378,12 @@ def register(sub: Any) -> None:
     # Neither probe lifts: hide --lift-speed and reject it when given (see _check).
     p._option_string_actions["--lift-speed"].help = argparse.SUPPRESS
     p.set_defaults(lift_speed=None)
+
+
+def add_options(p: argparse.ArgumentParser) -> None:
+    """The options of ``food-fetch estimate``."""
+    add_food_options(p)
+    _clamp_help(p)
     p.add_argument(
         "--probes",
         choices=("measure", "study"),
@@ -441,4 +440,3 @@ def register(sub: Any) -> None:
     from agents.cli.traces import add_traces_options
 
     add_traces_options(p)  # --traces FILE [--L] [--theta-0]; last: it marks the options above
-    p.set_defaults(func=cmd_estimate)

@@ -23,6 +23,11 @@ from agents.cli.common import UsageError, finite, require_extra, seed
 from agents.study import fetch_rate, friction, viscoelastic
 from agents.study.report import StudyOptionError, StudyResult
 
+HELP = "rerun one of the study's virtual experiments, writing tables and figures"
+DESCRIPTION = ("Rerun one of the study's virtual experiments in the simulator and write "
+               "its tables (CSV, markdown) and figures (PNG) to --out, with the study's reported "
+               "numbers (PAPER.md) beside this project's.")
+
 PREFIX = "food-fetch reproduce"
 
 
@@ -227,14 +232,8 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(sub: Any) -> None:
-    p = sub.add_parser(
-        "reproduce",
-        help="rerun one of the study's virtual experiments, writing tables and figures",
-        description="Rerun one of the study's virtual experiments in the simulator and write "
-        "its tables (CSV, markdown) and figures (PNG) to --out, with the study's reported "
-        "numbers (PAPER.md) beside this project's.",
-    )
+def add_options(p: argparse.ArgumentParser) -> None:
+    """The options of ``food-fetch reproduce``."""
     exp = p.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT",
                            parser_class=type(p))
     for name, spec in EXPERIMENTS.items():

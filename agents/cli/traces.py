@@ -151,24 +151,10 @@ def to_probe_estimate(traces: RecordedTraces, got: RecordedEstimates) -> ProbeEs
         out.warnings.append(f"{probe} probe: {error}")
     est = got.relaxation
     if est is not None:
-        out.estimate.update(K1=est.K1, K2=est.K2, B=est.B, g1=est.g1, tau1=est.tau1)
-        out.interval.update({k: v for k, v in est.intervals.items() if k in NAMES})
-        out.r2_clamp, out.r2_hold = est.r2_clamp, est.r2_hold
-        out.reliable &= est.reliable
-        out.warnings += [f"relaxation probe: {w}" for w in est.warnings]
-        out.details["relaxation"] = {
-            "theta_1": est.theta_1, "M_peak": est.M_peak, "M_inf": est.M_inf,
-            "fit_time": got.fit_time, "method": est.method,
-            "n_samples": int(traces.relaxation_inputs()[0].size),
-        }
-    fe = got.friction
-    if fe is not None:
-        out.estimate["mu"] = fe.mu
-        out.interval["mu"] = fe.interval
-        out.reliable &= fe.reliable
-        out.warnings += [f"slip probe: {w}" for w in fe.warnings]
-        out.details["slip"] = {"window": list(fe.window), "mu_left": fe.mu_left,
-                               "mu_right": fe.mu_right, "n_samples": fe.n_samples}
+        out.add_relaxation(est, got.fit_time)
+        out.details["relaxation"]["n_samples"] = int(traces.relaxation_inputs()[0].size)
+    if got.friction is not None:
+        out.add_friction(got.friction)
     return out
 
 
