@@ -46,7 +46,7 @@ from typing import Any
 
 import yaml
 
-from agents.cli_common import env_error_line
+from fetch_env.errors import env_error_line
 
 ALGOS: tuple[str, ...] = ("ppo", "sac")
 # Keys of the YAML files that are not arguments of the SB3 constructor.
@@ -335,29 +335,13 @@ def _eval_history(path: Path, n_eval_episodes: int) -> dict[str, list[Any]] | No
     return hist
 
 
-def _plan(algo: str | None, env_id: str, timesteps: int | None, seed: int, log_dir: Path,
-          resume: str | Path | None, hyperparams_file: str | Path | None,
-          overrides: dict[str, Any], eval_enabled: bool) -> _Plan:
-    """Check the whole request; reads files, writes none."""
+def _check_hyperparams(algo: str, run: dict[str, Any], ctor: dict[str, Any]) -> None:
+    """The run keys (this project's own: checked here, not by SB3) and the constructor's
+    (each an argument of SB3's class, none that ``food-fetch train`` sets itself)."""
     import inspect
 
     from stable_baselines3 import PPO, SAC
 
-    ids = env_ids()
-    if env_id not in ids:
-        raise TrainError(f"unknown environment id {env_id!r}; choose from {', '.join(ids)}")
-    if algo is not None and algo not in ALGOS:
-        raise TrainError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGOS)}")
-    data: dict[str, Any] = {}
-    if resume is not None:
-        algo, data = _checkpoint(resume, algo)
-    algo = algo or "ppo"
-    hp = load_hyperparams(algo, env_id, hyperparams_file, overrides)
-    run = {k: hp.pop(k) for k in RUN_KEYS if k in hp}
-    ctor = hp
-    source = str(hyperparams_file or hyperparams_path(algo))
-
-    # The run keys are this project's own: checked here, not by SB3.
     for key, value in run.items():
         _check_range(algo, key, value)
     cls = {"ppo": PPO, "sac": SAC}[algo]
@@ -383,6 +367,12 @@ def _plan(algo: str | None, env_id: str, timesteps: int | None, seed: int, log_d
         if algo == "sac" and key == "train_freq":
             _check_train_freq(value)
 
+
+def _resume_state(algo: str, run: dict[str, Any], ctor: dict[str, Any],
+                  resume: str | Path | None, data: dict[str, Any], overrides: dict[str, Any]
+                  ) -> tuple[int, dict[str, Any]]:
+    """Steps already done and the hyperparameters a resumed run may change; PPO's rollout
+    (``n_steps x n_envs >= 2``) checked for new and resumed runs alike."""
     done = 0
     resume_kwargs: dict[str, Any] = {}
     if resume is not None:
@@ -402,6 +392,29 @@ def _plan(algo: str | None, env_id: str, timesteps: int | None, seed: int, log_d
                      if resume is not None and "n_steps" not in overrides else "")
             raise TrainError(f"bad hyperparameter n_steps={n_steps}: n_steps x n_envs must be "
                              f">= 2, got {n_steps} x {n_envs}{whose}")
+    return done, resume_kwargs
+
+
+def _plan(algo: str | None, env_id: str, timesteps: int | None, seed: int, log_dir: Path,
+          resume: str | Path | None, hyperparams_file: str | Path | None,
+          overrides: dict[str, Any], eval_enabled: bool) -> _Plan:
+    """Check the whole request; reads files, writes none."""
+    ids = env_ids()
+    if env_id not in ids:
+        raise TrainError(f"unknown environment id {env_id!r}; choose from {', '.join(ids)}")
+    if algo is not None and algo not in ALGOS:
+        raise TrainError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGOS)}")
+    data: dict[str, Any] = {}
+    if resume is not None:
+        algo, data = _checkpoint(resume, algo)
+    algo = algo or "ppo"
+    hp = load_hyperparams(algo, env_id, hyperparams_file, overrides)
+    run = {k: hp.pop(k) for k in RUN_KEYS if k in hp}
+    ctor = hp
+    source = str(hyperparams_file or hyperparams_path(algo))
+
+    _check_hyperparams(algo, run, ctor)
+    done, resume_kwargs = _resume_state(algo, run, ctor, resume, data, overrides)
 
     total = timesteps if timesteps is not None else run.get("n_timesteps", 10_000)
     if not isinstance(total, int) or isinstance(total, bool) or total < 1:

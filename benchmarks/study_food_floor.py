@@ -26,9 +26,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from agents.cmd_estimate import RELAXATION_DEFAULTS, run_relaxation_probe
 from fetch_env.layouts import Piece
 from fetch_env.materials import Material
+from fetch_env.study_probes import RELAXATION_DEFAULTS, run_relaxation_probe
 
 OMEGAS = (0.01, 0.02, 0.03, 0.04)
 G1, TAU1 = 0.425, 3.667

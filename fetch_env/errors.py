@@ -61,3 +61,11 @@ def require_int(name: str, value: Any) -> None:
     """
     require(isinstance(value, numbers.Integral) and not isinstance(value, bool | np.bool_),
             name, value, "an integer")
+
+
+def env_error_line(exc: BaseException) -> str:
+    """The first line of an error raised while building an env, without the suffix
+    gymnasium appends (" was raised from the environment creator for ... with kwargs ...")."""
+    lines = str(exc).strip().splitlines()
+    line = lines[0] if lines else type(exc).__name__
+    return line.split(" was raised from the environment creator")[0]

@@ -78,7 +78,7 @@ def test_the_core_needs_only_gymnasium_mujoco_numpy_scipy() -> None:
     project = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())["project"]
     names = {re.split(r"[<>=\[ ;]", d, maxsplit=1)[0].lower() for d in project["dependencies"]}
     assert names == {"gymnasium", "mujoco", "numpy", "scipy"}
-    from agents.cli_common import EXTRAS
+    from agents.cli.common import EXTRAS
 
     assert set(EXTRAS) <= set(project["optional-dependencies"])
 

@@ -119,21 +119,6 @@ def test_reproduce_bad_input_one_line_exit_2(tmp_path, args, needle) -> None:
     assert len(lines) == 1 and needle in lines[0], p.stderr
 
 
-def test_reproduce_names_an_experiment_whose_module_is_missing() -> None:
-    """Experiments load lazily (agents/cmd_reproduce.py): a missing module is a usage error
-    naming it, not an ImportError.  (This ran through fetch-rate until that module landed,
-    and then skipped for good.)"""
-    import argparse
-
-    from agents.cli_common import UsageError
-    from agents.cmd_reproduce import cmd_reproduce, load
-
-    assert load("no-such-experiment") is None
-    with pytest.raises(UsageError, match=r"'no-such-experiment' is not available .*"
-                                         r"agents\.reproduce_no_such_experiment"):
-        cmd_reproduce(argparse.Namespace(experiment="no-such-experiment"))
-
-
 def test_reproduce_friction_tiny(tmp_path) -> None:
     p = run(
         "reproduce",

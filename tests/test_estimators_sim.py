@@ -17,9 +17,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from agents.cmd_estimate import run_relaxation_probe, run_slip_probe
 from fetch_env.layouts import single_block
 from fetch_env.materials import PRESETS
+from fetch_env.study_probes import run_relaxation_probe, run_slip_probe
 
 G1, TAU1 = 0.425, 3.667
 VISCO_TOL = 0.03

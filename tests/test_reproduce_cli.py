@@ -4,15 +4,11 @@ created or a progress bar starts, and a failed call leaves no directory behind."
 from __future__ import annotations
 
 import importlib.util
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from tests.cli_helpers import assert_one_line_error, run_cli
-
-ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture
@@ -79,12 +75,15 @@ def test_an_out_that_cannot_be_a_directory_is_one_line(
 def test_a_failed_run_removes_only_the_empty_dir_it_created(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
         exists: bool) -> None:
-    from agents import reproduce_friction
+    import dataclasses
 
-    def interrupted(_args: object) -> int:
+    from agents.cli import reproduce
+
+    def interrupted(**_kwargs: object) -> int:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(reproduce_friction, "run", interrupted)
+    monkeypatch.setitem(reproduce.EXPERIMENTS, "friction",
+                        dataclasses.replace(reproduce.EXPERIMENTS["friction"], run=interrupted))
     out = tmp_path / "new" / "out"
     if exists:
         out.mkdir(parents=True)
@@ -101,15 +100,3 @@ def test_out_is_created_once_the_inputs_are_good(
     assert code == 0, err
     assert (out / "friction.md").stat().st_size > 0
     assert (out / "fig4_friction.png").stat().st_size > 0
-
-
-def test_fetch_rate_module_rejects_a_negative_seed_before_any_fetch(tmp_path: Path) -> None:
-    """``python -m agents.reproduce_fetch_rate`` has its own parser (the CLI's seed type)."""
-    out = tmp_path / "out"
-    p = subprocess.run([sys.executable, "-m", "agents.reproduce_fetch_rate", "--seed", "-1",
-                        "--out", str(out), "--quick", "--no-figures"], cwd=ROOT,
-                       capture_output=True, text=True, timeout=120)
-    assert p.returncode == 2, p.stderr
-    lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1 and "--seed: -1 is not in [0, 4294967295]" in lines[0], p.stderr
-    assert not out.exists()

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from agents.cmd_estimate import NAMES, SIM_CLAMP_WEIGHT, relaxation_traces
-from agents.cmd_estimate_traces import estimate_recorded
+from agents.cli.estimate import NAMES
+from agents.cli.traces import estimate_recorded
 from estimators import (
     ClampGeometry,
     EstimationError,
@@ -30,6 +30,7 @@ from estimators import (
 )
 from estimators.sls import clamp_angle
 from estimators.trace_files import MIN_SAMPLES, PHASES
+from fetch_env.study_probes import SIM_CLAMP_WEIGHT, relaxation_traces
 from tests.cli_helpers import assert_one_line_error, run_cli
 
 RELAX_KEYS = ("K1", "K2", "B", "g1", "tau1")

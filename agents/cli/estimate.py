@@ -19,23 +19,36 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import time
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from agents.cli_common import UsageError, add_food_options, finite, writable, write_json
+from agents.cli.common import (
+    UsageError,
+    add_food_options,
+    finite,
+    make_material,
+    writable,
+    write_json,
+)
+from fetch_env.probes import nominal_stiffness
+from fetch_env.study_probes import (
+    RELAXATION_DEFAULTS,
+    SIM_CLAMP_WEIGHT,
+    SLIP_DEFAULTS,
+    run_relaxation_probe,
+    run_slip_probe,
+    study_elastic_stiffness,
+)
 
-RELAXATION_DEFAULTS = {"theta_d": 0.0244, "omega": 0.02, "hold": 25.0}
-SLIP_DEFAULTS = {"theta_d": 0.06, "omega": 0.1, "hold": 0.5, "slide_time": 10.0}
-ELASTIC_HOLD = 2.0  # [s] hold of the purely elastic reference run (nothing relaxes)
+HELP = "run the relaxation and slip probes on a food and estimate K1/K2/B, g1, tau1, mu"
+DESCRIPTION = ("Run the moment-relaxation probe and the induced-slip probe on one food "
+               "piece in the simulator, estimate K1, K2, B (hence g1, tau1) and mu from the "
+               "simulated sensors, and print them against the truth with errors and 95 % "
+               "intervals.")
+
 NAMES = ("K1", "K2", "B", "g1", "tau1", "mu")
-# Full fit on the simulator: clamp samples weigh 0.3 of hold samples.  The simulated clamp rise
-# is not exactly the SLS's (the tilted face first touches the piece's lower edge and the contact
-# grows), while eq. 6 holds in the hold; OLS (1.0) gives tau1 -3.05 % at 0.01 rad/s, 0.3 keeps
-# all four study speeds within 3 % (chosen on those runs: see docs/estimators_results.md).
-SIM_CLAMP_WEIGHT = 0.3
 # Where --theta-d is not given, each probe's angle adapts to the piece: its default above,
 # kept within the angles that squeeze the piece by these shares of its half-width past the
 # first contact the faces reach its rest surface at (fetch_env.probes.probe_angle).  The
@@ -66,6 +79,29 @@ class ProbeEstimate:
             out[k] = ev / tv - 1.0 if np.isfinite(tv) and tv != 0 and np.isfinite(ev) else math.nan
         return out
 
+    def add_relaxation(self, est: Any, fit_time: float) -> None:
+        """Take K1, K2, B, g1, tau1, their intervals, R^2 and warnings from a viscoelastic
+        estimate, and its fit facts into ``details["relaxation"]``."""
+        self.estimate.update(K1=est.K1, K2=est.K2, B=est.B, g1=est.g1, tau1=est.tau1)
+        self.interval.update({k: v for k, v in est.intervals.items() if k in NAMES})
+        self.r2_clamp, self.r2_hold = est.r2_clamp, est.r2_hold
+        self.reliable &= est.reliable
+        self.warnings += [f"relaxation probe: {w}" for w in est.warnings]
+        self.details.setdefault("relaxation", {}).update(
+            theta_1=est.theta_1, M_peak=est.M_peak, M_inf=est.M_inf, fit_time=fit_time,
+            method=est.method)
+
+    def add_friction(self, fe: Any) -> None:
+        """Take mu, its interval and warnings from a friction estimate, and its fit facts
+        into ``details["slip"]``."""
+        self.estimate["mu"] = fe.mu
+        self.interval["mu"] = fe.interval
+        self.reliable &= fe.reliable
+        self.warnings += [f"slip probe: {w}" for w in fe.warnings]
+        self.details.setdefault("slip", {}).update(
+            window=list(fe.window), mu_left=fe.mu_left, mu_right=fe.mu_right,
+            n_samples=fe.n_samples)
+
     def to_dict(self) -> dict[str, Any]:
         def num(v: float) -> float | None:
             return float(v) if np.isfinite(v) else None
@@ -81,174 +117,6 @@ class ProbeEstimate:
             "warnings": self.warnings,
             "details": self.details,
         }
-
-
-def make_material(args: argparse.Namespace) -> Any:
-    from fetch_env.materials import Material
-
-    return Material(
-        young=args.young,
-        poisson=args.poisson,
-        density=args.density,
-        g1=args.g1,
-        tau1=args.tau1,
-        mu=args.mu,
-        plate_mu=args.plate_mu,
-        yield_strain=args.yield_strain,
-    )
-
-
-def relaxation_traces(result: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
-    """``(t, theta, M, geometry)`` of a relaxation run from the clamp start on: time from the
-    clamp start, the measured hinge angle and the moment averaged over both half-spoons."""
-    from estimators import ClampGeometry
-
-    tr = result.traces
-    t0 = float(result.extra.get("t_clamp_start", 0.0))
-    sel = tr["t"] >= t0
-    m = 0.5 * (tr["moment_left"] + tr["moment_right"])
-    geom = ClampGeometry(L=float(result.geometry["L"]), theta_0=float(result.geometry["theta_0"]))
-    return tr["t"][sel] - t0, tr["theta"][sel], m[sel], geom
-
-
-def add_noise(x: np.ndarray, sd: float, rng: np.random.Generator) -> np.ndarray:
-    return x + sd * rng.standard_normal(x.shape) if sd > 0 else x
-
-
-def elastic_stiffness(pieces: tuple[Any, ...], action: Any) -> tuple[float, dict[str, Any]]:
-    """``K_el`` (N/m): eq. 7 on a purely elastic (``g1 = 0``) run of the same clamp."""
-    from estimators import steady_moment
-    from estimators.relaxation import detect_contact, infer_kinematics
-    from fetch_env.controller import FetchSimulator
-
-    elastic = tuple(
-        dataclasses.replace(p, material=dataclasses.replace(p.material, g1=0.0)) for p in pieces
-    )
-    res = FetchSimulator(elastic).run("relaxation", dataclasses.replace(action, hold=ELASTIC_HOLD))
-    t, theta, m, geom = relaxation_traces(res)
-    kin = infer_kinematics(t, theta)
-    contact = detect_contact(t, m, kin)
-    late = t > t[-1] - 0.5 * ELASTIC_HOLD
-    k_el = float(np.mean(m[late])) / steady_moment(1.0, geom, contact.theta_1, kin.theta_d)
-    return k_el, {
-        "theta_1": contact.theta_1,
-        "M_relaxed": float(np.mean(m[late])),
-        "wall_time": res.wall_time,
-    }
-
-
-def nominal_stiffness(piece: Any) -> float:
-    """``2 E_0 A / l`` (N/m): both faces squeeze the piece of width ``l`` and mid-section ``A``."""
-    ex, ey, ez = piece.extents
-    area = ex * ez if piece.shape == "cube" else math.pi / 4 * ex * ez
-    return 2.0 * piece.material.young * area / ey
-
-
-def run_relaxation_probe(
-    pieces: tuple[Any, ...],
-    theta_d: float,
-    omega: float,
-    hold: float,
-    method: str = "full",
-    noise: float = 0.0,
-    seed: int = 0,
-    clamp_weight: float = SIM_CLAMP_WEIGHT,
-    lift_speed: float | None = None,
-) -> dict[str, Any]:
-    """Run the relaxation probe and estimate K1, K2, B, g1, tau1 (never raises EstimationError:
-    a failure is reported in ``error``).  Returns a dict with the estimate, the traces used and
-    the fitted curve."""
-    from estimators import EstimationError, SLSParams, moment_trace
-    from estimators.relaxation import (
-        estimate_full_fit,
-        estimate_three_step,
-        infer_kinematics,
-    )
-    from fetch_env.controller import FetchAction, FetchSimulator
-
-    kw: dict[str, Any] = {"theta_d": theta_d, "omega": omega, "hold": hold}
-    if lift_speed is not None:
-        kw["lift_speed"] = lift_speed
-    action = FetchAction(**kw)
-    res = FetchSimulator(pieces).run("relaxation", action)
-    t, theta, m_clean, geom = relaxation_traces(res)
-    rng = np.random.default_rng(seed)
-    m = add_noise(m_clean, noise * float(np.max(np.abs(m_clean))), rng)
-    out: dict[str, Any] = {
-        "t": t,
-        "theta": theta,
-        "M": m,
-        "geometry": geom,
-        "action": action,
-        "wall_sim": res.wall_time,
-        "estimate": None,
-        "error": None,
-        "max_log_strain": float(res.traces["max_log_strain"].max()),
-    }
-    t0 = time.perf_counter()
-    try:
-        if method == "full":
-            est = estimate_full_fit(t, theta, m, geom, clamp_weight=clamp_weight)
-        else:
-            est = estimate_three_step(t, theta, m, geom)
-    except (EstimationError, ArithmeticError, np.linalg.LinAlgError) as exc:
-        out["error"] = f"{type(exc).__name__}: {exc}"
-        return out
-    out["wall_fit"] = time.perf_counter() - t0
-    out["estimate"] = est
-    if all(np.isfinite(v) and v > 0 for v in (est.K1, est.K2, est.B)):
-        kin = infer_kinematics(t, theta)
-        out["fitted"] = moment_trace(
-            t,
-            SLSParams(est.K1, est.K2, est.B),
-            geom,
-            est.theta_1,
-            kin.theta_d,
-            kin.omega,
-            kin.t_start,
-        )
-    return out
-
-
-def run_slip_probe(
-    pieces: tuple[Any, ...],
-    theta_d: float = SLIP_DEFAULTS["theta_d"],
-    omega: float = SLIP_DEFAULTS["omega"],
-    hold: float = SLIP_DEFAULTS["hold"],
-    slide_time: float = SLIP_DEFAULTS["slide_time"],
-    noise: float = 0.0,
-    seed: int = 0,
-) -> dict[str, Any]:
-    """Run the induced-slip probe and estimate mu (a failure is reported in ``error``)."""
-    from estimators import EstimationError, estimate_friction
-    from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator
-
-    action = FetchAction(theta_d=theta_d, omega=omega, hold=hold, slide_time=slide_time)
-    res = FetchSimulator(pieces).run("slip", action)
-    tr = res.traces
-    rng = np.random.default_rng(seed + 1)
-    keys = ("normal_left", "tangential_left", "normal_right", "tangential_right")
-    scale = noise * float(max(np.max(np.abs(tr[k])) for k in keys))
-    forces = {k: add_noise(tr[k], scale, rng) for k in keys}
-    slide = tr["phase"] == PHASE_CODE["slide"]
-    out: dict[str, Any] = {
-        "t": tr["t"],
-        "forces": forces,
-        "phase": tr["phase"],
-        "action": action,
-        "wall_sim": res.wall_time,
-        "estimate": None,
-        "error": None,
-        "slide_start": float(tr["t"][slide][0]),
-        "max_log_strain": float(tr["max_log_strain"].max()),
-    }
-    try:
-        out["estimate"] = estimate_friction(
-            tr["t"], *(forces[k] for k in keys), slide_start=out["slide_start"]
-        )
-    except (EstimationError, ArithmeticError) as exc:
-        out["error"] = f"{type(exc).__name__}: {exc}"
-    return out
 
 
 def _check(args: argparse.Namespace) -> None:
@@ -373,9 +241,7 @@ def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
     actions = probe_actions(args, pieces)  # every input is valid past here
     true = {k: math.nan for k in NAMES}
     true.update(g1=material.g1, tau1=material.tau1, mu=material.mu)
-    estimate = {k: math.nan for k in NAMES}
-    interval: dict[str, tuple[float, float]] = {}
-    out = ProbeEstimate(true=true, estimate=estimate, interval=interval)
+    out = ProbeEstimate(true=true, estimate={k: math.nan for k in NAMES}, interval={})
     out.details["settings"] = {
         "method": args.method,
         "noise": args.noise,
@@ -384,67 +250,48 @@ def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
         "probe": args.probe,
     }
     if "relaxation" in actions:
-        a = actions["relaxation"]
-        r = run_relaxation_probe(
-            pieces,
-            a.theta_d,
-            a.omega,
-            a.hold,
-            args.method,
-            args.noise,
-            args.seed,
-            args.clamp_weight,
-        )
-        out.details["relaxation"] = {
-            "action": r["action"].to_dict(),
-            "wall_sim": r["wall_sim"],
-            "max_log_strain": r["max_log_strain"],
-        }
-        est = r["estimate"]
-        if est is None:
-            out.reliable = False
-            out.warnings.append(f"relaxation probe: {r['error']}")
-        else:
-            estimate.update(K1=est.K1, K2=est.K2, B=est.B, g1=est.g1, tau1=est.tau1)
-            interval.update({k: v for k, v in est.intervals.items() if k in NAMES})
-            out.r2_clamp, out.r2_hold = est.r2_clamp, est.r2_hold
-            out.reliable &= est.reliable
-            out.warnings += [f"relaxation probe: {w}" for w in est.warnings]
-            out.details["relaxation"].update(
-                theta_1=est.theta_1,
-                M_peak=est.M_peak,
-                M_inf=est.M_inf,
-                fit_time=r["wall_fit"],
-                method=est.method,
-            )
-        if np.isfinite(material.g1) and material.g1 > 0:
-            _truth_k(pieces, r["action"], material, true, out)
+        _study_relaxation(args, pieces, actions["relaxation"], out)
     if "slip" in actions:
-        a = actions["slip"]
-        s = run_slip_probe(
-            pieces, a.theta_d, a.omega, a.hold, a.slide_time, noise=args.noise, seed=args.seed
-        )
-        out.details["slip"] = {
-            "action": s["action"].to_dict(),
-            "wall_sim": s["wall_sim"],
-            "max_log_strain": s["max_log_strain"],
-        }
-        fe = s["estimate"]
-        if fe is None:
-            out.reliable = False
-            out.warnings.append(f"slip probe: {s['error']}")
-        else:
-            estimate["mu"] = fe.mu
-            interval["mu"] = fe.interval
-            out.reliable &= fe.reliable
-            out.warnings += [f"slip probe: {w}" for w in fe.warnings]
-            out.details["slip"].update(
-                window=list(fe.window),
-                mu_left=fe.mu_left,
-                mu_right=fe.mu_right,
-                n_samples=fe.n_samples,
-            )
+        _study_slip(args, pieces, actions["slip"], out)
     return out
+
+
+def _record_probe(out: ProbeEstimate, name: str, run: dict[str, Any]) -> Any:
+    """Put a study probe's run facts into ``out.details[name]``; its estimate, or None with
+    the reason in the warnings and ``reliable`` False."""
+    out.details[name] = {
+        "action": run["action"].to_dict(),
+        "wall_sim": run["wall_sim"],
+        "max_log_strain": run["max_log_strain"],
+    }
+    if run["estimate"] is None:
+        out.reliable = False
+        out.warnings.append(f"{name} probe: {run['error']}")
+    return run["estimate"]
+
+
+def _study_relaxation(args: argparse.Namespace, pieces: tuple[Any, ...], a: Any,
+                      out: ProbeEstimate) -> None:
+    """The study's relaxation probe into ``out``: K1, K2, B, g1, tau1, their intervals and
+    fit facts, and the elastic-twin truth for K1, K2, B."""
+    r = run_relaxation_probe(pieces, a.theta_d, a.omega, a.hold, args.method, args.noise,
+                             args.seed, args.clamp_weight)
+    est = _record_probe(out, "relaxation", r)
+    if est is not None:
+        out.add_relaxation(est, r["wall_fit"])
+    material = pieces[0].material
+    if np.isfinite(material.g1) and material.g1 > 0:
+        _truth_k(pieces, r["action"], material, out.true, out)
+
+
+def _study_slip(args: argparse.Namespace, pieces: tuple[Any, ...], a: Any,
+                out: ProbeEstimate) -> None:
+    """The study's induced-slip probe into ``out``: mu, its interval and the fit's facts."""
+    s = run_slip_probe(pieces, a.theta_d, a.omega, a.hold, a.slide_time, noise=args.noise,
+                       seed=args.seed)
+    fe = _record_probe(out, "slip", s)
+    if fe is not None:
+        out.add_friction(fe)
 
 
 def _truth_k(pieces: tuple[Any, ...], action: Any, material: Any, true: dict[str, float],
@@ -454,7 +301,7 @@ def _truth_k(pieces: tuple[Any, ...], action: Any, material: Any, true: dict[str
     from estimators import EstimationError
 
     try:
-        k_el, info = elastic_stiffness(pieces, action)
+        k_el, info = study_elastic_stiffness(pieces, action)
     except (EstimationError, ArithmeticError) as exc:
         out.warnings.append(f"true K1, K2, B not computed: the elastic twin run gave {exc}")
         return
@@ -495,7 +342,7 @@ def print_report(r: ProbeEstimate) -> None:
 
 def cmd_estimate(args: argparse.Namespace) -> int:
     if any(getattr(args, k, None) is not None for k in ("traces", "L", "theta_0")):
-        from agents.cmd_estimate_traces import cmd_estimate_traces  # recorded, not simulated
+        from agents.cli.traces import cmd_estimate_traces  # recorded, not simulated
 
         return cmd_estimate_traces(args)
     result = run_estimate(args)
@@ -509,15 +356,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(sub: Any) -> None:
-    p = sub.add_parser(
-        "estimate",
-        help="run the relaxation and slip probes on a food and estimate K1/K2/B, g1, tau1, mu",
-        description="Run the moment-relaxation probe and the induced-slip probe on one food "
-        "piece in the simulator, estimate K1, K2, B (hence g1, tau1) and mu from the simulated "
-        "sensors, and print them against the truth with errors and 95 % intervals.",
-    )
-    add_food_options(p)
+def _clamp_help(p: argparse.ArgumentParser) -> None:
+    """The clamp options' help with the probes' own defaults; --lift-speed hidden."""
     # add_food_options documents simulate's defaults; estimate's probes have their own (from
     # the dicts above, so the help cannot disagree with the code).
     r, s = RELAXATION_DEFAULTS, SLIP_DEFAULTS
@@ -538,6 +378,12 @@ def register(sub: Any) -> None:
     # Neither probe lifts: hide --lift-speed and reject it when given (see _check).
     p._option_string_actions["--lift-speed"].help = argparse.SUPPRESS
     p.set_defaults(lift_speed=None)
+
+
+def add_options(p: argparse.ArgumentParser) -> None:
+    """The options of ``food-fetch estimate``."""
+    add_food_options(p)
+    _clamp_help(p)
     p.add_argument(
         "--probes",
         choices=("measure", "study"),
@@ -591,7 +437,6 @@ def register(sub: Any) -> None:
         metavar="FILE",
         help="write true, estimate, error, interval, r2_clamp, r2_hold as JSON",
     )
-    from agents.cmd_estimate_traces import add_traces_options
+    from agents.cli.traces import add_traces_options
 
     add_traces_options(p)  # --traces FILE [--L] [--theta-0]; last: it marks the options above
-    p.set_defaults(func=cmd_estimate)

@@ -1,28 +1,25 @@
-"""``food-fetch reproduce fetch-rate``: the study's fetch findings, rerun on the simulator.
+"""The study's fetch findings, rerun on the simulator (``food-fetch reproduce fetch-rate``).
 
 Runs the fetches of the study's scenes (PAPER.md, "Results the study reports"): a single row
 of cubes at four spacings, two rows of soft or hard cubes at two clamp angles, diced soft
 pieces at three clamp angles and diced mixes with hard pieces. Every scene is fixed (the
-study's layouts, or diced mixes drawn from fixed seeds), so the table is reproducible. It
-writes ``fetch_rate.json`` (every number), ``fetch_rate_table.md`` (the table, with the
-study's finding beside each group and whether the simulator agrees) and
-``figures/fetch_rate_*.png`` under ``--out``.
-
-A dispatcher (``agents/cmd_reproduce.py``) imports this module lazily and calls
-:func:`add_arguments` on its sub-parser and :func:`run` with the parsed arguments.
+study's layouts, or diced mixes drawn from fixed seeds), so the table is reproducible.
+:func:`run` returns ``fetch_rate.json`` (every number), ``fetch_rate_table.md`` (the table,
+with the study's finding beside each group and whether the simulator agrees) and the figure
+``figures/fetch_rate_summary.png``.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from agents.study.report import StudyResult, progress, pyplot
 
 # The study's fetch: clamp at 0.1 rad/s, lift 5 mm at 5 mm/s (PAPER.md, diced setup).
 OMEGA = 0.1  # [rad/s]
@@ -31,7 +28,7 @@ LIFT_HEIGHT = 0.005  # [m]
 HOLD = 1.0  # [s] hold at theta_d before the lift
 AIR_HOLD = 1.0  # [s] hold in the air before counting
 SINGLE_ROW_THETA = 0.045  # [rad] the study does not state it for the single row
-N_DICED_MIXES = 3  # diced mixes with hard pieces, drawn from --seed on
+N_DICED_MIXES = 3  # diced mixes with hard pieces, drawn from the seed on
 LARGE_LE = 0.34  # the study's "no large deformation" limit
 
 
@@ -229,11 +226,9 @@ def table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def figures(rows: list[dict[str, Any]], out: Path) -> list[Path]:
-    from agents.cmd_reproduce import pyplot, save_figure
-
+def figure(rows: list[dict[str, Any]]) -> Any:
+    """Fetch rate and the largest log strain of every case, one panel per group."""
     plt = pyplot()
-    paths: list[Path] = []
     groups = list(dict.fromkeys(r["group"] for r in rows))
     fig, axes = plt.subplots(1, len(groups), figsize=(4 * len(groups), 3.6), squeeze=False)
     for ax, group in zip(axes[0], groups, strict=True):
@@ -249,60 +244,33 @@ def figures(rows: list[dict[str, Any]], out: Path) -> list[Path]:
     axes[0][0].legend(fontsize=8)
     fig.suptitle("Fetch rate and max log strain (dashed: LE = 0.34)")
     fig.tight_layout()
-    (out / "figures").mkdir(parents=True, exist_ok=True)
-    p = out / "figures" / "fetch_rate_summary.png"
-    save_figure(fig, p)
-    paths.append(p)
-    return paths
+    return fig
 
 
 HELP = ("the study's fetch findings: single row vs spacing, two rows soft vs hard, diced soft "
         "at 0.045/0.085/0.09 rad, diced mixes with hard pieces")
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The experiment's own options (the dispatcher adds ``--out`` and ``--seed``)."""
-    parser.add_argument("--quick", action="store_true",
-                        help="one diced mix instead of three (about a minute less)")
-    parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+def run(quick: bool = False, seed: int = 0, with_figures: bool = True,
+        show_progress: bool = False) -> StudyResult:
+    """Fetch every case and judge each group against the study's finding.
 
-
-def run(args: argparse.Namespace) -> int:
-    """Run every case (tqdm bar), write the JSON, the markdown table and the figure."""
-    from tqdm import tqdm
-
-    from agents.cmd_reproduce import write_text
-
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    seed = int(getattr(args, "seed", 0))
-    todo = cases(args.quick, seed)
-    rows = [run_case(c) for c in tqdm(todo, desc="fetch-rate", unit="fetch")]
-    write_text(out / "fetch_rate.json", json.dumps(
-        {"settings": {"omega": OMEGA, "lift_speed": LIFT_SPEED, "lift_height": LIFT_HEIGHT,
-                      "hold": HOLD, "air_hold": AIR_HOLD, "seed": seed}, "rows": rows,
-         "verdicts": verdicts(rows)}, indent=1, default=float))
+    Args:
+        quick: one diced mix instead of three.
+        seed: seed of the first diced mix (the others ``seed + 1``, ``seed + 2``).
+        with_figures: also draw the summary figure (needs matplotlib).
+        show_progress: a tqdm bar over the fetches.
+    """
+    todo = cases(quick, seed)
+    rows = [run_case(c) for c in progress(todo, show_progress, "fetch-rate", "fetch")]
+    settings = {"omega": OMEGA, "lift_speed": LIFT_SPEED, "lift_height": LIFT_HEIGHT,
+                "hold": HOLD, "air_hold": AIR_HOLD, "seed": seed}
     text = table(rows)
-    write_text(out / "fetch_rate_table.md", text)
-    if not args.no_figures:
-        figures(rows, out)
-    print(text)
-    return 0
-
-
-if __name__ == "__main__":
-    import sys
-
-    from agents.cli_common import EXIT_USAGE, Parser, UsageError, seed
-
-    # The CLI's Parser and seed type: a bad --seed (e.g. -1, which used to crash after 11 of
-    # the 12 fetches) is one line and exit 2 before any fetch.
-    ap = Parser(prog="reproduce_fetch_rate", description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="docs")
-    ap.add_argument("--seed", type=seed, default=0)
-    add_arguments(ap)
-    try:
-        raise SystemExit(run(ap.parse_args()))
-    except UsageError as exc:
-        print(exc, file=sys.stderr)
-        raise SystemExit(EXIT_USAGE) from None
+    result = StudyResult(summary=[text.rstrip("\n")])
+    result.texts["fetch_rate.json"] = json.dumps(
+        {"settings": settings, "rows": rows, "verdicts": verdicts(rows)}, indent=1,
+        default=float)
+    result.texts["fetch_rate_table.md"] = text
+    if with_figures:
+        result.figures["figures/fetch_rate_summary.png"] = figure(rows)
+    return result

@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
 
-from agents.cli_common import UsageError, finite, require_extra, seed
+from agents.cli.common import UsageError, finite, require_extra, seed
 
+HELP = "train PPO or SAC on a FoodFetch environment (Stable-Baselines3)"
+DESCRIPTION = ("Train PPO or SAC with the hyperparameters shipped for the environment "
+               "id (agents/hyperparams/<algo>.yml, rl-baselines3-zoo style). Writes "
+               "model.zip, config.yml (to repeat the run), progress.csv, monitor/, eval/ "
+               "(periodic evaluation, best model) and checkpoints/ under --log-dir. Needs the "
+               "train extra (stable-baselines3, torch).")
 ENV_HELP = "FoodFetch-Block-v0, -Row-v0, -TwoRows-v0 or -Diced-v0"
 
 
@@ -55,16 +60,8 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(sub: Any) -> None:
-    p = sub.add_parser(
-        "train",
-        help="train PPO or SAC on a FoodFetch environment (Stable-Baselines3)",
-        description="Train PPO or SAC with the hyperparameters shipped for the environment "
-        "id (agents/hyperparams/<algo>.yml, rl-baselines3-zoo style). Writes model.zip, "
-        "config.yml (to repeat the run), progress.csv, monitor/, eval/ (periodic evaluation, "
-        "best model) and checkpoints/ under --log-dir. Needs the train extra "
-        "(stable-baselines3, torch).",
-    )
+def add_options(p: argparse.ArgumentParser) -> None:
+    """The options of ``food-fetch train``."""
     p.add_argument("--algo", choices=("ppo", "sac"), default=None,
                    help="algorithm (default: ppo; with --resume, the checkpoint's)")
     p.add_argument("--env", default="FoodFetch-Block-v0", metavar="ID",
@@ -100,4 +97,3 @@ def register(sub: Any) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--verbose", type=int, choices=(0, 1), default=0,
                    help="1: print SB3's training table (default: 0)")
-    p.set_defaults(func=cmd_train)

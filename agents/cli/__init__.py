@@ -1,8 +1,10 @@
 """The ``food-fetch`` command line: a dispatcher over one module per subcommand.
 
-Each ``agents/cmd_<name>.py`` has ``register(subparsers)``.  A user's mistake (a bad number,
-an unknown choice, an unwritable path) prints one line on stderr and exits with code 2, never
-a traceback.
+Each ``agents/cli/<name>.py`` has ``HELP`` and ``DESCRIPTION`` (for ``--help``),
+``add_options(parser)`` and ``cmd_<name>(args) -> int`` (the exit code);
+:mod:`agents.cli.common` holds the options, parsers and error handling they share.  A user's
+mistake (a bad number, an unknown choice, an unwritable path) prints one line on stderr and
+exits with code 2, never a traceback.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-from agents.cli_common import EXIT_USAGE, Parser, UsageError
+from agents.cli.common import EXIT_USAGE, Parser, UsageError
 
 # One module per subcommand, in the order ``--help`` lists them.
 SUBCOMMANDS: tuple[str, ...] = ("simulate", "estimate", "reproduce", "train", "evaluate")
@@ -28,7 +30,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for name in SUBCOMMANDS:
-        importlib.import_module(f"agents.cmd_{name}").register(sub)
+        module = importlib.import_module(f"agents.cli.{name}")
+        p = sub.add_parser(name, help=module.HELP, description=module.DESCRIPTION)
+        module.add_options(p)
+        p.set_defaults(func=getattr(module, f"cmd_{name}"))
     return parser
 
 
@@ -49,6 +54,3 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     return EXIT_USAGE
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.cli_common import UsageError, finite, write_json
-from agents.cmd_estimate import NAMES, SIM_CLAMP_WEIGHT, ProbeEstimate, print_report
+from agents.cli.common import UsageError, finite, write_json
+from agents.cli.estimate import NAMES, ProbeEstimate, print_report
 from estimators import (
     EstimationError,
     FrictionEstimate,
@@ -34,6 +34,7 @@ from estimators import (
     estimate_three_step,
     load_traces,
 )
+from fetch_env.study_probes import SIM_CLAMP_WEIGHT
 
 # Options of ``estimate`` that keep their meaning with --traces (argparse dests).
 TRACE_OPTIONS = frozenset({"traces", "L", "theta_0", "probe", "method", "json"})
@@ -150,24 +151,10 @@ def to_probe_estimate(traces: RecordedTraces, got: RecordedEstimates) -> ProbeEs
         out.warnings.append(f"{probe} probe: {error}")
     est = got.relaxation
     if est is not None:
-        out.estimate.update(K1=est.K1, K2=est.K2, B=est.B, g1=est.g1, tau1=est.tau1)
-        out.interval.update({k: v for k, v in est.intervals.items() if k in NAMES})
-        out.r2_clamp, out.r2_hold = est.r2_clamp, est.r2_hold
-        out.reliable &= est.reliable
-        out.warnings += [f"relaxation probe: {w}" for w in est.warnings]
-        out.details["relaxation"] = {
-            "theta_1": est.theta_1, "M_peak": est.M_peak, "M_inf": est.M_inf,
-            "fit_time": got.fit_time, "method": est.method,
-            "n_samples": int(traces.relaxation_inputs()[0].size),
-        }
-    fe = got.friction
-    if fe is not None:
-        out.estimate["mu"] = fe.mu
-        out.interval["mu"] = fe.interval
-        out.reliable &= fe.reliable
-        out.warnings += [f"slip probe: {w}" for w in fe.warnings]
-        out.details["slip"] = {"window": list(fe.window), "mu_left": fe.mu_left,
-                               "mu_right": fe.mu_right, "n_samples": fe.n_samples}
+        out.add_relaxation(est, got.fit_time)
+        out.details["relaxation"]["n_samples"] = int(traces.relaxation_inputs()[0].size)
+    if got.friction is not None:
+        out.add_friction(got.friction)
     return out
 
 

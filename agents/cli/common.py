@@ -25,14 +25,6 @@ EXTRAS: dict[str, tuple[str, ...]] = {
 }
 
 
-def env_error_line(exc: BaseException) -> str:
-    """The first line of an error raised while building an env, without the suffix
-    gymnasium appends (" was raised from the environment creator for ... with kwargs ...")."""
-    lines = str(exc).strip().splitlines()
-    line = lines[0] if lines else type(exc).__name__
-    return line.split(" was raised from the environment creator")[0]
-
-
 def require_extra(command: str, extra: str) -> None:
     """Stop with a one-line usage error, before any work starts, when ``command`` needs an
     extra that is not installed (the core installs only gymnasium, mujoco, numpy, scipy)."""
@@ -128,6 +120,15 @@ def add_food_options(p: argparse.ArgumentParser) -> None:
         c.add_argument(option, type=finite(), default=default, metavar=metavar, help=text)
     p.add_argument("--seed", type=seed, default=0, metavar="N",
                    help="seed for every random choice (default: 0)")
+
+
+def make_material(args: argparse.Namespace) -> Any:
+    """The :class:`fetch_env.materials.Material` of the food options (validated there)."""
+    from fetch_env.materials import Material
+
+    return Material(young=args.young, poisson=args.poisson, density=args.density, g1=args.g1,
+                    tau1=args.tau1, mu=args.mu, plate_mu=args.plate_mu,
+                    yield_strain=args.yield_strain)
 
 
 def write_json(path: Path, payload: dict[str, Any]) -> None:

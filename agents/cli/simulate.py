@@ -5,7 +5,12 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from agents.cli_common import add_food_options, writable, write_json
+from agents.cli.common import add_food_options, make_material, writable, write_json
+
+HELP = "run one fetch or probe experiment on one piece"
+DESCRIPTION = ("Run the fetch (clamp, hold, lift, air hold), the "
+               "moment-relaxation probe or the induced-slip probe on one "
+               "food piece and print or save the result.")
 
 EXPERIMENT_DEFAULTS = {
     "fetch": (0.045, 0.1, 1.0),
@@ -18,19 +23,9 @@ def _build(args: argparse.Namespace) -> tuple[Any, Any]:
     """Validated pieces and action from the options (raises before any simulation)."""
     from fetch_env.controller import FetchAction
     from fetch_env.layouts import Piece
-    from fetch_env.materials import Material
 
     theta_d, omega, hold = EXPERIMENT_DEFAULTS[args.experiment]
-    material = Material(
-        young=args.young,
-        poisson=args.poisson,
-        density=args.density,
-        g1=args.g1,
-        tau1=args.tau1,
-        mu=args.mu,
-        plate_mu=args.plate_mu,
-        yield_strain=args.yield_strain,
-    )
+    material = make_material(args)
     pieces = (Piece(args.shape, args.size, material),)
     action = FetchAction(
         theta_d=args.theta_d if args.theta_d is not None else theta_d,
@@ -103,26 +98,19 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(sub: Any) -> None:
-    sim = sub.add_parser(
-        "simulate",
-        help="run one fetch or probe experiment on one piece",
-        description="Run the fetch (clamp, hold, lift, air hold), the "
-        "moment-relaxation probe or the induced-slip probe on one "
-        "food piece and print or save the result.",
-    )
-    sim.add_argument(
+def add_options(p: argparse.ArgumentParser) -> None:
+    """The options of ``food-fetch simulate``."""
+    p.add_argument(
         "--experiment",
         choices=("fetch", "relaxation", "slip"),
         default="fetch",
         help="which experiment (default: fetch)",
     )
-    add_food_options(sim)
-    sim.add_argument(
+    add_food_options(p)
+    p.add_argument(
         "--json",
         type=writable,
         default=None,
         metavar="FILE",
         help="write the full result, traces included, as JSON",
     )
-    sim.set_defaults(func=cmd_simulate)

@@ -12,15 +12,23 @@ import time
 from pathlib import Path
 from typing import Any
 
-from agents.cli_common import (
+from agents.cli.common import (
     UsageError,
-    env_error_line,
     finite,
     require_extra,
     seed,
     writable,
     write_json,
 )
+from fetch_env.errors import env_error_line
+
+HELP = "evaluate agents side by side on the same seeded scenes"
+DESCRIPTION = ("Run each agent on the same seeded scenes (episode i uses "
+               "reset(seed=SEED+i)) and print, per agent, the mean reward, fetch rate, success "
+               "rate, mean and max logarithmic strain LE, time per fetch and regret against "
+               "'search' (the per-scene optimum found with the simulator), each with its 95 % "
+               "interval. Agents: random, study, model-based, search, or the path of a model "
+               "saved by 'food-fetch train'. Ctrl-C stops and still writes what finished.")
 
 
 def _positive_int(text: str) -> int:
@@ -103,31 +111,14 @@ def _payload(args: argparse.Namespace, agents: list[str], records: list[dict[str
     }
 
 
-def cmd_evaluate(args: argparse.Namespace) -> int:
-    require_extra("evaluate", "figures")
-    from agents.evaluate import (
-        REFERENCE,
-        AgentSpecError,
-        EvaluationInterrupted,
-        Task,
-        format_table,
-        make_agent,
-        record_videos,
-        run_tasks,
-        summarize,
-        write_csv,
-        write_plots,
-    )
-    from fetch_env import ENV_IDS  # (not agents.train.env_ids: that module needs PyYAML)
+def _checked_agents(args: argparse.Namespace) -> tuple[list[str], dict[str, Any]]:
+    """The agents to evaluate and their descriptions; a bad name, path or model file is one
+    usage line, before any episode runs."""
+    from agents.evaluate import AgentSpecError, make_agent
 
-    ids = sorted(ENV_IDS)
-    if args.env not in ids:
-        raise UsageError(f"food-fetch evaluate: unknown environment id {args.env!r}; "
-                         f"choose from {', '.join(ids)}")
-    env_kwargs = _check_env_kwargs(args.env, args.env_kwargs)
     agents = list(dict.fromkeys(args.agent or ["random", "study", "model-based"]))
     describe = {}
-    for spec in agents:  # fail on a bad name or path before any episode runs
+    for spec in agents:
         try:
             agent = make_agent(spec, args.env)
             if hasattr(agent, "model"):
@@ -137,17 +128,18 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             raise UsageError(f"food-fetch evaluate: {exc}") from None
         except Exception as exc:  # e.g. a model file SB3 cannot read
             raise UsageError(f"food-fetch evaluate: cannot use agent {spec!r}: {exc}") from None
-    n_search = min(args.search_episodes or args.episodes, args.episodes)
-    tasks = [Task(a, args.env, i, args.seed + i, env_kwargs)
-             for i in range(args.episodes) for a in agents
-             if not (a == REFERENCE and i >= n_search)]
-    # A worker beyond one per task only costs a process start (MuJoCo, numpy imports).
-    args.workers = min(args.workers, len(tasks))
+    return agents, describe
 
+
+def _run_with_bar(args: argparse.Namespace, tasks: list[Any], n_agents: int
+                  ) -> tuple[list[Any], bool, float]:
+    """Run ``tasks`` under a progress bar: the records, whether Ctrl-C stopped it, wall time."""
     from tqdm import tqdm
 
+    from agents.evaluate import EvaluationInterrupted, run_tasks
+
     bar = tqdm(total=len(tasks), unit="ep", disable=args.quiet or None, file=sys.stderr,
-               desc=f"{args.env} x {len(agents)} agents")
+               desc=f"{args.env} x {n_agents} agents")
     wall = time.perf_counter()
     interrupted = False
     try:
@@ -156,13 +148,14 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         records, interrupted = exc.results, True
     finally:
         bar.close()
-    wall = time.perf_counter() - wall
-    summary = summarize(records, agents)
-    payload = _payload(args, agents, records, summary, interrupted, wall, describe, env_kwargs)
-    if args.json is not None:
-        write_json(args.json, _json_safe(payload))
-    if args.csv is not None:
-        write_csv(args.csv, records)
+    return records, interrupted, time.perf_counter() - wall
+
+
+def _print_summary(args: argparse.Namespace, agents: list[str], summary: Any, n_search: int,
+                   wall: float, interrupted: bool) -> None:
+    """The run's one-line header and the agents' table."""
+    from agents.evaluate import REFERENCE, format_table
+
     print(f"{args.env}: {args.episodes} episodes from seed {args.seed}"
           + (f" (search on the first {n_search})" if REFERENCE in agents
              and n_search < args.episodes else "")
@@ -171,43 +164,68 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     print("mean ± half-width of the 95 % interval; regret = search reward - agent reward "
           "on the same scenes")
     print(format_table(summary, markdown=args.markdown))
+
+
+def _write_videos(args: argparse.Namespace, agents: list[str], env_kwargs: dict[str, Any]
+                  ) -> None:
+    """``--video``: each agent's first episode; no OpenGL is one usage line, no empty folder."""
+    from agents.evaluate import record_videos
+
+    existed = args.video.exists()
+    try:
+        videos = record_videos(args.video, agents, args.env, args.seed, env_kwargs)
+    except Exception as exc:  # no OpenGL context (headless without MUJOCO_GL=egl)
+        if not existed and args.video.is_dir() and not any(args.video.iterdir()):
+            args.video.rmdir()  # leave no empty folder behind a failed call
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise UsageError(f"food-fetch evaluate: --video: cannot render ({msg}); on a "
+                         "headless machine set MUJOCO_GL=egl (or osmesa)") from None
+    for p in videos:
+        print(f"video             {p}")
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    require_extra("evaluate", "figures")
+    from agents.evaluate import REFERENCE, Task, summarize, write_csv, write_plots
+    from fetch_env import ENV_IDS  # (not agents.train.env_ids: that module needs PyYAML)
+
+    ids = sorted(ENV_IDS)
+    if args.env not in ids:
+        raise UsageError(f"food-fetch evaluate: unknown environment id {args.env!r}; "
+                         f"choose from {', '.join(ids)}")
+    env_kwargs = _check_env_kwargs(args.env, args.env_kwargs)
+    agents, describe = _checked_agents(args)
+    n_search = min(args.search_episodes or args.episodes, args.episodes)
+    tasks = [Task(a, args.env, i, args.seed + i, env_kwargs)
+             for i in range(args.episodes) for a in agents
+             if not (a == REFERENCE and i >= n_search)]
+    # A worker beyond one per task only costs a process start (MuJoCo, numpy imports).
+    args.workers = min(args.workers, len(tasks))
+    records, interrupted, wall = _run_with_bar(args, tasks, len(agents))
+    summary = summarize(records, agents)
+    payload = _payload(args, agents, records, summary, interrupted, wall, describe, env_kwargs)
+    if args.json is not None:
+        write_json(args.json, _json_safe(payload))
+    if args.csv is not None:
+        write_csv(args.csv, records)
+    _print_summary(args, agents, summary, n_search, wall, interrupted)
+    written = [path for path in (args.json, args.csv) if path is not None]
     if interrupted:
-        for path in (args.json, args.csv):
-            if path is not None:
-                print(f"wrote (partial)   {path}")
+        for path in written:
+            print(f"wrote (partial)   {path}")
         return 130
     if args.plots is not None:
         for p in write_plots(args.plots, summary, records, args.env):
             print(f"plot              {p}")
-    for path in (args.json, args.csv):
-        if path is not None:
-            print(f"wrote             {path}")
+    for path in written:
+        print(f"wrote             {path}")
     if args.video is not None:
-        existed = args.video.exists()
-        try:
-            videos = record_videos(args.video, agents, args.env, args.seed, env_kwargs)
-        except Exception as exc:  # no OpenGL context (headless without MUJOCO_GL=egl)
-            if not existed and args.video.is_dir() and not any(args.video.iterdir()):
-                args.video.rmdir()  # leave no empty folder behind a failed call
-            msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise UsageError(f"food-fetch evaluate: --video: cannot render ({msg}); on a "
-                             "headless machine set MUJOCO_GL=egl (or osmesa)") from None
-        for p in videos:
-            print(f"video             {p}")
+        _write_videos(args, agents, env_kwargs)
     return 0
 
 
-def register(sub: Any) -> None:
-    p = sub.add_parser(
-        "evaluate",
-        help="evaluate agents side by side on the same seeded scenes",
-        description="Run each agent on the same seeded scenes (episode i uses "
-        "reset(seed=SEED+i)) and print, per agent, the mean reward, fetch rate, success "
-        "rate, mean and max logarithmic strain LE, time per fetch and regret against "
-        "'search' (the per-scene optimum found with the simulator), each with its 95 % "
-        "interval. Agents: random, study, model-based, search, or the path of a model "
-        "saved by 'food-fetch train'. Ctrl-C stops and still writes what finished.",
-    )
+def add_options(p: argparse.ArgumentParser) -> None:
+    """The options of ``food-fetch evaluate``."""
     p.add_argument("--agent", action="append", metavar="NAME|PATH",
                    help="agent to evaluate; repeat for a side-by-side table (default: random, "
                    "study, model-based)")
@@ -241,4 +259,3 @@ def register(sub: Any) -> None:
                    "MUJOCO_GL=egl)")
     p.add_argument("--markdown", action="store_true", help="print the table as Markdown")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=cmd_evaluate)
