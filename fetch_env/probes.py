@@ -21,7 +21,7 @@ faces first reach the piece's actual surface (the compiled mesh's rest vertices,
 the nominal shape, so the nominal width would miss the piece), plus the angle that
 squeezes the piece by ``strain`` of its width: the same gentle squeeze for every shape.
 
-Accuracy against time (measured on sampled Block scenes, see ``docs/env_results.md`` and
+Accuracy against time (measured on sampled Block scenes, see ``docs/validation/probes.md`` and
 ``tests/test_env_slow.py``): the hold must be of the order of tau_1 (1 to 6 s) for g_1 and
 tau_1 to be identified: over a hold h << tau_1 the decay is linear to within
 (h / tau_1)^2 / 2 and only the ratio g_1 / tau_1 shows.  The default hold is 6 s, simulated
@@ -94,7 +94,7 @@ HOLD_SKIP = 0.1  # [s] start of the relaxation hold left out of the fit (servo c
 # for tau1 on seeds 5000-5127, 0.1 / 0.25 / 0.5 / 0.75 s gave
 # medians of 6.5 / 5.9 / 6.0 / 7.2 % and 75th percentiles of 13.2 / 11.6 / 11.8 / 15.3 %.
 HOLD_SETTLE = 0.25
-CLAMP_WEIGHT = 0.3  # full fit: clamp residuals against the hold (docs/estimators_results.md)
+CLAMP_WEIGHT = 0.3  # full fit: clamp residuals against the hold (docs/reproducing.md)
 # A 95 % interval of g1, tau1 or mu wider than +-2.5 % makes an outcome unreliable.  With the
 # calibration's error model giving the intervals (estimators.calibration.ErrorModel), this is
 # the widest that called no tuning food reliable whose g1, tau1 or mu error exceeds 5 %: on

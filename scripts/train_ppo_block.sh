@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# The documented full training run on FoodFetch-Block-v0 (docs/agents_results.md):
+# The documented full training run on FoodFetch-Block-v0 (docs/agents.md):
 # SAC by default (ALGO=ppo for PPO; both use agents/hyperparams/<algo>.yml), a budget of
 # 1500 fetches (45 min on 2 x86_64 cores shared with other jobs; ~25 min on an idle core),
 # then the saved model evaluated against the baselines on the same 100 seeded scenes as
-# docs/agents_results.md (seed 1000).
+# docs/agents.md (seed 1000).
 #
 #   scripts/train_ppo_block.sh                # SAC, out/sac_block
 #   ALGO=ppo STEPS=4000 scripts/train_ppo_block.sh

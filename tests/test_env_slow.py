@@ -73,7 +73,7 @@ def _summary(e: np.ndarray) -> tuple[float, float, float]:
 # samples estimates about that quantile, the largest of 64 about the 98th); g1's and tau1's
 # set at the stiffened-contact figures with about 2x / 1.7x room, so that losing either change
 # fails.  probe_hold=0.3 (the fast probes): mu as above; g1 / tau1 identified on < 50 %
-# (docs/env_results.md).
+# (docs/validation/probes.md).
 
 
 def _p75(e: np.ndarray) -> float:

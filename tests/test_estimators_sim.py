@@ -3,7 +3,7 @@
 Viscoelastic: a 15 mm, 0.2 MPa cube, g1 = 0.425, tau1 = 3.667 s, clamped to 0.0244 rad and held
 25 s; the full fit of the measured angle and the moment averaged over both half-spoons must give
 g1 and tau1 within 3 % (the issue's bar; the study's own deviations, 0.941 % / 0.164 %, are the
-goal and are not met at every omega, see docs/estimators_results.md).  One omega in the default
+goal and are not met at every omega, see docs/reproducing.md).  One omega in the default
 suite, all four marked slow.
 
 Friction: mu within 1.4 % (the study's worst case) for cube, ellipsoid and sphere; one mu per

@@ -294,7 +294,7 @@ def test_a_stalled_relaxation_probe_is_estimated_at_the_angle_it_stalled_at() ->
     where the env's default time-scaled hold (6 s, 8x) does worst (g1 +29 %, tau1 +108 %,
     against +21 % / -32 % in real time): its chattering contact creeps, and MuJoCo's
     soft-contact creep is a rate the time scaling does not scale
-    (docs/env_results.md)."""
+    (docs/validation/probes.md)."""
     material = Material(young=3212244.0627809814, poisson=0.4377864883888628,
                         density=1106.5149542573067, g1=0.21149751227192837,
                         tau1=2.548873360971311, mu=0.5734666394557012)
