@@ -392,7 +392,7 @@ def relaxation_contact_timeconst(pieces: tuple[Piece, ...], geometry: Geometry) 
     ``1 / tc**2`` is kept at least ``RELAXATION_CONTACT_RATIO * E / (rho s^2)`` for the
     stiffest piece, down to ``tc`` = 1 ms.  On 128 sampled Block scenes (seeds 5000-5127; not
     the held-back ones) the env's probes then gave g1 to a median of ~2.8 % instead of ~4.7 %
-    and tau1 (still from the full fit) of ~6.7 % instead of ~10 % (docs/env_results.md);
+    and tau1 (still from the full fit) of ~6.7 % instead of ~10 % (docs/validation/probes.md);
     soft foods (below ~0.3 MPa at 15 mm) keep ``geometry.contact_timeconst``.
     """
     ratio = max(p.material.young / (p.material.density * float(min(p.extents)) ** 2)

@@ -143,7 +143,7 @@ _COMMON_DOC = """
     records; ``fetch_env.controller.TimeScale``): 6 s of relaxation in ~60 steps.  With the
     probes' other settings (``fetch_env.probes.ProbeConfig``) it costs about a third of a
     Block episode; the accuracy on held-back scenes is in the README and
-    ``docs/env_results.md``.  ``probe_time_scale=1, probe_time_growth=0`` simulates the hold
+    ``docs/validation/probes.md``.  ``probe_time_scale=1, probe_time_growth=0`` simulates the hold
     in real time (the unscaled reference); ``probe_hold=0.3`` still gives mu but g1 and tau1
     only coarsely or not at all.
 
@@ -229,7 +229,7 @@ _COMMON_DOC = """
     episodes (and lost, 0.98 -> 0.76, over 8); on 40 diced mixes 86 % of the pieces ended
     fetched or not as at a 2.5 ms step, against 92 % at the default 5 ms and a 93 % chaos
     floor (the 2.5 ms run against itself with every piece moved 1 nm), and 2-3x as many mixes
-    crushed a soft die (``benchmarks/bench_step_size.py --twins``, ``docs/env_results.md``).
+    crushed a soft die (``benchmarks/bench_step_size.py --twins``, ``docs/validation/step-size.md``).
 
     ## Version history
     - v0 (0.2.0): the model's estimates are calibrated (``probe_calibrated``; False gives the
@@ -665,7 +665,7 @@ class FoodFetchBlockEnv(FoodFetchEnv):
         "FoodFetch-Block-v0: fetch one soft block.",
         "One piece (cube, ellipsoid or sphere) of a sampled viscoelastic material, the "
         "study's block experiments; the fastest id (about 2.3-2.5 episodes a second on one core "
-        "on the project's 2-core VM, docs/env_results.md).",
+        "on the project's 2-core VM, docs/benchmarks.md).",
         "block")
 
     __init__ = _with_layout("block")

@@ -44,7 +44,7 @@ CONDITIONING_LIMIT = 1e4
 # fetch rate moves +0.03 +- 0.03, and the mixes run 1.3x faster in all.  The middle of three
 # cubes in a row, held only by its neighbours' friction, sags over a 1 s air hold within
 # 10 um of its sag at 1000 (tests/test_fetch.py).  At 30 one mix in 40 under-converged
-# MuJoCo's M+K solve (docs/env_results.md, "The multi-piece impratio").
+# MuJoCo's M+K solve (docs/validation/impratio.md).
 MULTI_PIECE_IMPRATIO = 100.0
 MIN_CONTACT_TIMECONST = 0.001  # [s] the stiffest contact Geometry allows (stable at the 5 ms step)
 BLADE_HALF_THICKNESS = 0.002  # [m] thick enough that no food vertex can reach the far side
@@ -327,7 +327,7 @@ def contact_solref(timeconst: float, timestep: float) -> list[float]:
     stiffness ``1 / tc**2`` and damping ``2 / tc`` (MuJoCo's own conversion), which
     ``refsafe`` leaves as authored (measured: identical probe estimates with it disabled).
     Even so, the contact's compliance under ``discrete`` grows with the step
-    (``docs/env_results.md``).
+    (``docs/validation/probes.md``).
     """
     if timeconst >= 2 * timestep:
         return [timeconst, 1.0]

@@ -31,9 +31,28 @@ def test_readme_is_at_most_12_kb() -> None:
 
 
 def test_readme_tells_no_development_history() -> None:
-    """No "session 12", "sessions 8-14" and the like (the history is CHANGELOG.md's)."""
+    """No dated history (the word "session" followed by a number): that is CHANGELOG.md's."""
     hits = [line for line in README.read_text().splitlines()
-            if re.search(r"sessions? ?[0-9]", line, re.IGNORECASE)]
+            if HISTORY.search(line)]
+    assert hits == []
+
+
+HISTORY = re.compile(r"sessions? ?[0-9]", re.IGNORECASE)
+
+
+def test_no_development_history_anywhere() -> None:
+    """The same over every text the project ships: docs, code, tests, benchmarks, scripts,
+    notebooks (each hit named with its file and line)."""
+    root = README.parent
+    hits = []
+    for folder in ("docs", "fetch_env", "estimators", "agents", "tests", "benchmarks",
+                   "scripts", "notebooks"):
+        for path in sorted((root / folder).rglob("*")):
+            if path.suffix not in (".md", ".py", ".ipynb", ".yml", ".sh", ".txt"):
+                continue
+            for n, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+                if HISTORY.search(line):
+                    hits.append(f"{path.relative_to(root)}:{n}")
     assert hits == []
 
 
