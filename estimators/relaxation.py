@@ -194,12 +194,8 @@ def _validate(
 # phase detection
 
 
-def infer_kinematics(
-    t: ArrayLike,
-    theta: ArrayLike,
-    omega: float | None = None,
-    theta_d: float | None = None,
-) -> ClampKinematics:
+def infer_kinematics(t: ArrayLike, theta: ArrayLike, omega: float | None = None,
+                     theta_d: float | None = None) -> ClampKinematics:
     """Read the clamp velocity, hold angle and timing off ``theta(t)``.
 
     Args:
@@ -487,14 +483,9 @@ def _three_step_core(
     return K1, K2, K2 / lam
 
 
-def estimate_three_step(
-    t: ArrayLike,
-    theta: ArrayLike,
-    M: ArrayLike,
-    geometry: ClampGeometry,
-    omega: float | None = None,
-    theta_d: float | None = None,
-) -> ViscoelasticEstimate:
+def estimate_three_step(t: ArrayLike, theta: ArrayLike, M: ArrayLike, geometry: ClampGeometry,
+                        omega: float | None = None,
+                        theta_d: float | None = None) -> ViscoelasticEstimate:
     """The study's three-step estimate of ``K1, K2, B`` (see module docstring).
 
     Args:
@@ -555,16 +546,9 @@ class HoldEstimate:
     fit: HoldFit
 
 
-def estimate_from_hold(
-    t: ArrayLike,
-    M: ArrayLike,
-    geometry: ClampGeometry,
-    theta_1: float,
-    theta_d: float,
-    omega: float,
-    t_d: float,
-    settle: float = 0.0,
-) -> HoldEstimate:
+def estimate_from_hold(t: ArrayLike, M: ArrayLike, geometry: ClampGeometry, theta_1: float,
+                       theta_d: float, omega: float, t_d: float,
+                       settle: float = 0.0) -> HoldEstimate:
     """``K1, K2, B`` (and ``g1, tau1``) from the hold alone, past a settling time.
 
     Eq. 6 is fitted to the samples after ``t_d + settle``: its rate is ``1 / tau1`` for any SLS
@@ -616,16 +600,10 @@ def estimate_from_hold(
     return HoldEstimate(K1=K1, K2=K2, B=B, g1=K2 / (K1 + K2), tau1=1.0 / hf.lam, fit=hf)
 
 
-def _never_relaxes_estimate(
-    tt: NDArray[np.float64],
-    m: NDArray[np.float64],
-    geometry: ClampGeometry,
-    kin: ClampKinematics,
-    theta_1: float,
-    hf: HoldFit,
-    method: str,
-    extra: list[str] | None = None,
-) -> ViscoelasticEstimate:
+def _never_relaxes_estimate(tt: NDArray[np.float64], m: NDArray[np.float64],
+                            geometry: ClampGeometry, kin: ClampKinematics, theta_1: float,
+                            hf: HoldFit, method: str,
+                            extra: list[str] | None = None) -> ViscoelasticEstimate:
     hold = tt > kin.t_d
     m_inf = float(np.mean(m[hold]))
     unit = steady_moment(1.0, geometry, theta_1, kin.theta_d)
@@ -655,14 +633,9 @@ def _never_relaxes_estimate(
     )
 
 
-def _three_step_from_parts(
-    tt: NDArray[np.float64],
-    m: NDArray[np.float64],
-    geometry: ClampGeometry,
-    kin: ClampKinematics,
-    contact: ContactDetection,
-    hf: HoldFit,
-) -> ViscoelasticEstimate:
+def _three_step_from_parts(tt: NDArray[np.float64], m: NDArray[np.float64], geometry: ClampGeometry,
+                           kin: ClampKinematics, contact: ContactDetection,
+                           hf: HoldFit) -> ViscoelasticEstimate:
     theta_1 = contact.theta_1
     if not hf.relaxes:
         return _never_relaxes_estimate(tt, m, geometry, kin, theta_1, hf, "three_step")

@@ -285,16 +285,9 @@ def moment_components(
     return S, V
 
 
-def _moment_quadrature(
-    tt: NDArray[np.float64],
-    params: SLSParams,
-    geometry: ClampGeometry,
-    theta_1: float,
-    theta_d: float,
-    omega: float,
-    t_start: float,
-    n_sub: int,
-) -> NDArray[np.float64]:
+def _moment_quadrature(tt: NDArray[np.float64], params: SLSParams, geometry: ClampGeometry,
+                       theta_1: float, theta_d: float, omega: float, t_start: float,
+                       n_sub: int) -> NDArray[np.float64]:
     """Integrating-factor solution of eq. 4 by step-wise composite Simpson quadrature.
 
     Between consecutive grid times ``t_k < t_{k+1}`` (the output times in the clamp plus ``t_1`` and
@@ -337,16 +330,8 @@ def _moment_quadrature(
     return out
 
 
-def _moment_ivp(
-    tt: NDArray[np.float64],
-    params: SLSParams,
-    geometry: ClampGeometry,
-    theta_1: float,
-    theta_d: float,
-    omega: float,
-    t_start: float,
-    rtol: float,
-) -> NDArray[np.float64]:
+def _moment_ivp(tt: NDArray[np.float64], params: SLSParams, geometry: ClampGeometry, theta_1: float,
+                theta_d: float, omega: float, t_start: float, rtol: float) -> NDArray[np.float64]:
     """Integrate eq. 4 with ``scipy.integrate.solve_ivp`` through the clamp and the hold."""
     t1 = t_start + theta_1 / omega
     td = t_start + theta_d / omega

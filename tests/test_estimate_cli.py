@@ -157,17 +157,6 @@ def test_reproduce_viscoelastic_tiny(tmp_path) -> None:
 
 
 # ------------------------------------------------------------------ in-process, no simulation
-@pytest.fixture
-def no_simulation(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Any simulation fails the test: a rejected call must do no work."""
-    from fetch_env.controller import FetchSimulator
-
-    def refuse(*_a: object, **_k: object) -> None:
-        raise AssertionError("simulated before the inputs were validated")
-
-    monkeypatch.setattr(FetchSimulator, "run", refuse)
-
-
 @pytest.mark.parametrize(("args", "fragment"), [
     # the slip probe used to ignore these (always theta_d 0.06, omega 0.1, hold 0.5): now they
     # apply to it and are validated as simulate validates them

@@ -11,17 +11,6 @@ import pytest
 from tests.cli_helpers import assert_one_line_error, run_cli
 
 
-@pytest.fixture
-def no_simulation(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Any simulation fails the test: a rejected call must do no work."""
-    from fetch_env.controller import FetchSimulator
-
-    def refuse(*_a: object, **_k: object) -> None:
-        raise AssertionError("simulated before the inputs were validated")
-
-    monkeypatch.setattr(FetchSimulator, "run", refuse)
-
-
 @pytest.mark.parametrize(("argv", "fragment"), [
     (["friction", "--shapes", "cylinder"], "unknown shapes 'cylinder'"),
     (["friction", "--mus", "0"], "--mus values must be in (0, 2], got 0"),
