@@ -60,3 +60,22 @@ def test_estimators_star_import_gives_the_estimators() -> None:
     for name in ("estimate_three_step", "estimate_full_fit", "estimate_from_hold",
                  "estimate_friction", "ClampGeometry", "SLSParams", "EstimationError"):
         assert name in namespace
+
+
+@pytest.mark.parametrize("package", ["agents", "agents.cli", "agents.study"])
+def test_agents_packages_list_their_api(package: str) -> None:
+    """Every name in ``__all__`` imports, sorted without repeats."""
+    module = importlib.import_module(package)
+    names = list(module.__all__)
+    assert names == sorted(names) and len(names) == len(set(names))
+    for name in names:
+        assert getattr(module, name) is not None, f"{package}.{name}"
+
+
+def test_import_agents_stays_light() -> None:
+    """``import agents`` loads neither MuJoCo nor torch until a name is used."""
+    code = ("import sys, agents; print('mujoco' in sys.modules, 'torch' in sys.modules); "
+            "agents.StudyAgent; print('mujoco' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert out == ["False", "False", "True"]

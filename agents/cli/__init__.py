@@ -16,6 +16,8 @@ from collections.abc import Sequence
 
 from agents.cli.common import EXIT_USAGE, Parser, UsageError
 
+__all__ = ["SUBCOMMANDS", "build_parser", "main"]
+
 # One module per subcommand, in the order ``--help`` lists them.
 SUBCOMMANDS: tuple[str, ...] = ("simulate", "estimate", "reproduce", "train", "evaluate")
 
