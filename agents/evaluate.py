@@ -67,6 +67,7 @@ class Task:
     episode: int
     seed: int
     env_kwargs: dict[str, Any] = field(default_factory=dict)
+    record: bool = False  # also return the episode's transition (``--dataset``)
 
 
 _ENVS: dict[tuple[str, str], Any] = {}
@@ -117,14 +118,14 @@ def run_episode(task: Task) -> dict[str, Any]:
     agent.seed(task.seed)
     agent.begin_episode(env)
     action = np.asarray(agent.act(obs), np.float32)
-    _, reward, _, _, info = env.step(action)
+    next_obs, reward, terminated, truncated, info = env.step(action)
     wall = time.perf_counter() - wall
     applied = info.get("action_applied", {})
     k = int(reset_info.get("probe_piece", 0))
     pieces = reset_info.get("pieces", [])
     material = pieces[k]["material"] if pieces else {}
     le = info.get("max_log_strain")
-    return {
+    record = {
         "agent": task.agent, "episode": task.episode, "seed": task.seed,
         "reward": float(reward), "fetch_rate": float(info.get("fetch_rate", 0.0)),
         "is_success": bool(info.get("is_success", False)),
@@ -140,6 +141,12 @@ def run_episode(task: Task) -> dict[str, Any]:
         "true_K1": float(reset_info.get("true_params", {}).get("K1", math.nan)),
         "diverged": "error" in info, "wall_s": wall,
     }
+    if task.record:  # the data of a Minari episode, written by the parent in seed order
+        from agents.datasets import transition
+
+        record["transition"] = transition(obs, reset_info, action, next_obs, float(reward),
+                                          bool(terminated), bool(truncated), info)
+    return record
 
 
 def _init_worker() -> None:

@@ -28,7 +28,11 @@ DESCRIPTION = ("Run each agent on the same seeded scenes (episode i uses "
                "rate, mean and max logarithmic strain LE, time per fetch and regret against "
                "'search' (the per-scene optimum found with the simulator), each with its 95 % "
                "interval. Agents: random, study, model-based, search, or the path of a model "
-               "saved by 'food-fetch train'. Ctrl-C stops and still writes what finished.")
+               "saved by 'food-fetch train'. Ctrl-C stops and still writes what finished. "
+               "--dataset records the episodes as Minari datasets for offline RL.")
+
+
+DEFAULT_AGENTS: tuple[str, ...] = ("random", "study", "model-based")
 
 
 def _positive_int(text: str) -> int:
@@ -116,7 +120,7 @@ def _checked_agents(args: argparse.Namespace) -> tuple[list[str], dict[str, Any]
     usage line, before any episode runs."""
     from agents.evaluate import AgentSpecError, make_agent
 
-    agents = list(dict.fromkeys(args.agent or ["random", "study", "model-based"]))
+    agents = list(dict.fromkeys(args.agent or DEFAULT_AGENTS))
     describe = {}
     for spec in agents:
         try:
@@ -184,8 +188,58 @@ def _write_videos(args: argparse.Namespace, agents: list[str], env_kwargs: dict[
         print(f"video             {p}")
 
 
+def _checked_datasets(args: argparse.Namespace) -> dict[str, str]:
+    """``--dataset``: {agent: Minari id}, each free (or ``--dataset-overwrite``); the extra,
+    the name and the ids are checked before any work."""
+    if args.dataset is None:
+        if args.dataset_overwrite:
+            raise UsageError("food-fetch evaluate: --dataset-overwrite needs --dataset NAME")
+        return {}
+    require_extra("evaluate --dataset", "datasets")
+    from agents.datasets import DatasetError, check_free, dataset_ids
+
+    try:
+        ids = dataset_ids(args.dataset, list(dict.fromkeys(args.agent or DEFAULT_AGENTS)))
+        check_free(ids, args.dataset_overwrite)
+    except DatasetError as exc:
+        raise UsageError(f"food-fetch evaluate: --dataset: {exc}") from None
+    return ids
+
+
+def _write_datasets(args: argparse.Namespace, ids: dict[str, str], records: list[Any],
+                    transitions: dict[Any, Any], env_kwargs: dict[str, Any],
+                    describe: dict[str, Any], interrupted: bool) -> list[str]:
+    """Each agent's recorded episodes as its Minari dataset; the lines to print."""
+    import gymnasium as gym
+
+    from agents.datasets import DatasetError, write_dataset
+    from agents.evaluate import REFERENCE
+
+    n_search = min(args.search_episodes or args.episodes, args.episodes)
+    lines = []
+    env = gym.make(args.env, **env_kwargs)  # its spec (id, kwargs) goes into the dataset
+    try:
+        for agent, ds_id in ids.items():
+            settings = {"env_id": args.env, "env_kwargs": env_kwargs, "agent": agent,
+                        "agent_settings": describe.get(agent), "seed": args.seed,
+                        "episodes_planned": n_search if agent == REFERENCE else args.episodes,
+                        "complete": not interrupted}
+            try:
+                n = write_dataset(ds_id, agent, env, records, transitions,
+                                  _json_safe(settings), overwrite=args.dataset_overwrite)
+            except DatasetError as exc:
+                raise UsageError(f"food-fetch evaluate: --dataset: {exc}") from None
+            if n:
+                lines.append(f"dataset{' (partial)' if interrupted else ''}".ljust(18)
+                             + f"{ds_id} ({n} episodes)")
+    finally:
+        env.close()
+    return lines
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     require_extra("evaluate", "figures")
+    from agents.datasets import pop_transitions  # (minari itself only with --dataset)
     from agents.evaluate import REFERENCE, Task, summarize, write_csv, write_plots
     from fetch_env import ENV_IDS  # (not agents.train.env_ids: that module needs PyYAML)
 
@@ -193,15 +247,17 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.env not in ids:
         raise UsageError(f"food-fetch evaluate: unknown environment id {args.env!r}; "
                          f"choose from {', '.join(ids)}")
+    datasets = _checked_datasets(args)
     env_kwargs = _check_env_kwargs(args.env, args.env_kwargs)
     agents, describe = _checked_agents(args)
     n_search = min(args.search_episodes or args.episodes, args.episodes)
-    tasks = [Task(a, args.env, i, args.seed + i, env_kwargs)
+    tasks = [Task(a, args.env, i, args.seed + i, env_kwargs, record=bool(datasets))
              for i in range(args.episodes) for a in agents
              if not (a == REFERENCE and i >= n_search)]
     # A worker beyond one per task only costs a process start (MuJoCo, numpy imports).
     args.workers = min(args.workers, len(tasks))
     records, interrupted, wall = _run_with_bar(args, tasks, len(agents))
+    transitions = pop_transitions(records) if datasets else {}
     summary = summarize(records, agents)
     payload = _payload(args, agents, records, summary, interrupted, wall, describe, env_kwargs)
     if args.json is not None:
@@ -210,15 +266,21 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         write_csv(args.csv, records)
     _print_summary(args, agents, summary, n_search, wall, interrupted)
     written = [path for path in (args.json, args.csv) if path is not None]
+    recorded = _write_datasets(args, datasets, records, transitions, env_kwargs, describe,
+                               interrupted) if datasets else []
     if interrupted:
         for path in written:
             print(f"wrote (partial)   {path}")
+        for line in recorded:
+            print(line)
         return 130
     if args.plots is not None:
         for p in write_plots(args.plots, summary, records, args.env):
             print(f"plot              {p}")
     for path in written:
         print(f"wrote             {path}")
+    for line in recorded:
+        print(line)
     if args.video is not None:
         _write_videos(args, agents, env_kwargs)
     return 0
@@ -257,5 +319,11 @@ def add_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--video", type=_out_dir, default=None, metavar="DIR",
                    help="record each agent's first episode (needs an OpenGL backend, e.g. "
                    "MUJOCO_GL=egl)")
+    p.add_argument("--dataset", default=None, metavar="NAME",
+                   help="record the episodes as Minari datasets NAME/AGENT-v0, one per agent "
+                   "(e.g. food-fetch/block gives food-fetch/block/study-v0), under "
+                   "MINARI_DATASETS_PATH or ~/.minari/datasets; needs the datasets extra")
+    p.add_argument("--dataset-overwrite", action="store_true",
+                   help="replace datasets of those ids (default: refuse before any episode)")
     p.add_argument("--markdown", action="store_true", help="print the table as Markdown")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
