@@ -6,7 +6,7 @@ median of one run each: a diced fetch's cost follows its chaotic trajectory), an
 ``benchmarks/bench_env.py``'s one-core loop (random actions, default env settings, model
 estimator, reset seeds 1000 + i) on every id.  Writes JSON with the machine and the command
 for ``scripts/make_readme_tables.py``.  Run it on an otherwise idle machine: the load average
-at the start is recorded.
+at the start and at the end is recorded.
 
     python benchmarks/speed_summary.py --episodes 8 --out docs/data/readme_speed.json
 """
@@ -14,6 +14,7 @@ at the start is recorded.
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
@@ -54,6 +55,7 @@ def main() -> int:
         envs[env_id] = {k: r[k] for k in ("eps", "eps_cpu", "probe_share", "errors")}
         print(f"{env_id}: {r['eps']:.2f} episodes/s, probes {r['probe_share']:.0%}", flush=True)
     info["wall_s"] = round(time.perf_counter() - start, 1)
+    info["load_average_at_end"] = round(os.getloadavg()[0], 2)
     write_json(args.out, {"meta": info, "episodes": args.episodes, "simulator": simulator,
                           "envs": envs})
     print(f"wrote {args.out} in {info['wall_s']:.0f} s")

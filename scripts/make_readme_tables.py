@@ -88,9 +88,10 @@ def speed_table(data: dict[str, Any]) -> str:
         rows.append(f"| {env_id} episodes | {e['eps_cpu']:.2f} per CPU second "
                     f"({e['eps']:.2f} per wall second), probes {100 * e['probe_share']:.0f} % |")
     meta = data["meta"]
+    load = (f"{meta['load_average_at_start']:g} at the start, "
+            f"{meta['load_average_at_end']:g} at the end")
     return ("\n".join(rows) + f"\n\nOne core, {data['episodes']} episodes an id; load average "
-            f"{meta['load_average_at_start']:g} at the start (wall figures drop on a busy "
-            "machine); " + _footer(meta).lstrip("\n"))
+            f"{load} (wall figures drop on a busy machine); " + _footer(meta).lstrip("\n"))
 
 
 TABLES: dict[str, Callable[[dict[str, Any]], str]] = {
