@@ -1,8 +1,11 @@
 """Train PPO or SAC on a ``FoodFetch-*`` environment with Stable-Baselines3.
 
-Hyperparameters live in ``agents/hyperparams/<algo>.yml``, one key per environment id (the
-rl-baselines3-zoo convention), and can be overridden per run.  A run writes, under its log
-directory::
+Hyperparameters live in ``agents/hyperparams/<algo>.yml``, one key per environment id, in
+rl_zoo3's format (``python -m rl_zoo3.train --conf-file`` reads the same files: SB3's
+constructor arguments plus the zoo's ``n_envs``, ``n_timesteps``, ``policy``, ``env_kwargs``),
+and can be overridden per run.  The run settings, how often to evaluate and to checkpoint, are
+not hyperparameters: they are arguments (``--eval-freq``, ``--eval-episodes``, ``--save-freq``,
+named as rl_zoo3's flags).  A run writes, under its log directory::
 
     model.zip              the final policy (``food-fetch evaluate --agent DIR/model.zip``)
     config.yml             everything needed to repeat the run (algo, env, seed, budget,
@@ -19,7 +22,7 @@ an earlier run's files as they were.
 Resuming (``resume=CHECKPOINT``): the budget is the total step count, the checkpoint's steps
 included.  The algorithm's arguments are the checkpoint's; ``overrides`` may change those SB3
 re-applies to a loaded model (:data:`RESUMABLE`), any other is refused.  The run settings
-(``n_envs``, ``eval_freq``, ...) come from the YAML and overrides as for a new run.  Resuming
+(``n_envs``, ``env_kwargs``) and the run settings apply as for a new run.  Resuming
 into a log directory that holds the same run continues its monitor, progress and evaluation
 logs, and keeps its earlier config under ``previous_runs`` in config.yml.
 
@@ -49,9 +52,21 @@ import yaml
 from fetch_env.errors import env_error_line
 
 ALGOS: tuple[str, ...] = ("ppo", "sac")
-# Keys of the YAML files that are not arguments of the SB3 constructor.
-RUN_KEYS: tuple[str, ...] = ("n_envs", "n_timesteps", "policy", "eval_freq", "n_eval_episodes",
-                             "checkpoint_freq", "env_kwargs")
+# Keys of the YAML files that are not arguments of the SB3 constructor: rl_zoo3's, which
+# its ExperimentManager takes out before it builds the model (so they mean the same there).
+RUN_KEYS: tuple[str, ...] = ("n_envs", "n_timesteps", "policy", "env_kwargs")
+# rl_zoo3's other YAML keys, which food-fetch train does not implement: refused by name.
+ZOO_ONLY: tuple[str, ...] = ("normalize", "frame_stack", "env_wrapper", "vec_env_wrapper",
+                             "callback", "monitor_kwargs", "noise_type", "noise_std")
+# The run settings, by the names of the ``train()`` arguments and of rl_zoo3's train flags.
+SETTINGS: dict[str, str] = {"eval_freq": "--eval-freq", "n_eval_episodes": "--eval-episodes",
+                            "save_freq": "--save-freq"}
+# Their earlier names as hyperparameters: still taken in ``overrides`` (``--hyperparams``),
+# never in a YAML file, where rl_zoo3 would pass them to SB3's constructor (a TypeError).
+LEGACY: dict[str, str] = {"eval_freq": "eval_freq", "n_eval_episodes": "n_eval_episodes",
+                          "checkpoint_freq": "save_freq"}
+DEFAULT_EVAL_EPISODES = 20
+EVALS_PER_RUN = 4  # default eval and checkpoint frequency: a quarter of the budget
 EVAL_SEED_OFFSET = 1_000_003  # eval scenes never coincide with training scenes
 MAX_ENVS = 64  # DummyVecEnv steps the envs one after another: more than this is a typo
 INFO_KEYS: tuple[str, ...] = ("fetch_rate", "max_log_strain", "is_success")  # monitor columns
@@ -74,6 +89,7 @@ RESUMABLE: dict[str, tuple[str, ...]] = {
 Range = tuple[bool, float | None, float | None, bool]
 RANGES: dict[str, Range] = {
     "n_envs": (True, 1, MAX_ENVS, False), "n_timesteps": (True, 1, None, False),
+    # the run settings under their earlier names (``--hyperparams eval_freq=...``)
     "eval_freq": (True, 0, None, False), "n_eval_episodes": (True, 1, None, False),
     "checkpoint_freq": (True, 0, None, False),
     "learning_rate": (False, 0, None, True), "n_steps": (True, 1, None, False),
@@ -166,6 +182,11 @@ def load_hyperparams(algo: str, env_id: str, file: str | Path | None = None,
     bad = [k for k in block if not isinstance(k, str)]
     if bad:
         raise TrainError(f"hyperparameter names in {str(path)!r} must be text, got {bad[0]!r}")
+    moved = [k for k in LEGACY if k in block]
+    if moved:  # the file must stay one that python -m rl_zoo3.train --conf-file accepts
+        raise TrainError(f"{moved[0]} in {str(path)!r} is a run setting, not an rl_zoo3 "
+                         f"hyperparameter (rl_zoo3 would pass it to SB3's {algo.upper()}): "
+                         f"remove it and give {SETTINGS[LEGACY[moved[0]]]} instead")
     hp = copy.deepcopy(block)
     hp.update(copy.deepcopy(overrides or {}))
     return hp
@@ -234,7 +255,8 @@ class _Plan:
     seed: int
     log_dir: Path
     ctor: dict[str, Any]            # SB3 constructor arguments (new run)
-    run: dict[str, Any]             # run keys as given (recorded in config.yml)
+    run: dict[str, Any]             # RUN_KEYS as given (recorded in config.yml)
+    settings: dict[str, int]        # SETTINGS: eval_freq, n_eval_episodes, save_freq
     source: str                     # where the hyperparameters came from, for messages
     overrides: dict[str, Any]
     resume: Path | None = None
@@ -255,15 +277,15 @@ class _Plan:
 
     @property
     def eval_freq(self) -> int:
-        return int(self.run.get("eval_freq", 0))
+        return self.settings["eval_freq"]
 
     @property
     def n_eval_episodes(self) -> int:
-        return int(self.run.get("n_eval_episodes", 10))
+        return self.settings["n_eval_episodes"]
 
     @property
-    def checkpoint_freq(self) -> int:
-        return int(self.run.get("checkpoint_freq", 0))
+    def save_freq(self) -> int:
+        return self.settings["save_freq"]
 
 
 def _checkpoint(path: str | Path, algo: str | None) -> tuple[str, dict[str, Any]]:
@@ -329,9 +351,10 @@ def _eval_history(path: Path, n_eval_episodes: int) -> dict[str, list[Any]] | No
                          "continue it: move it away or use another --log-dir")
     if results and len(results[0]) != n_eval_episodes:
         # EvalCallback saves one array: rows of another length would not stack.
-        raise TrainError(f"bad hyperparameter n_eval_episodes={n_eval_episodes}: the earlier "
+        raise TrainError(f"bad run setting n_eval_episodes={n_eval_episodes}: the earlier "
                          f"evaluations in {str(path)!r} have {len(results[0])} episodes each; "
-                         "keep that or use another --log-dir")
+                         f"keep that (--eval-episodes {len(results[0])}) or use another "
+                         "--log-dir")
     return hist
 
 
@@ -357,6 +380,9 @@ def _check_hyperparams(algo: str, run: dict[str, Any], ctor: dict[str, Any]) -> 
 
     args = set(inspect.signature(cls.__init__).parameters) - {"self", "policy"}
     for key, value in ctor.items():
+        if key in ZOO_ONLY:
+            raise TrainError(f"hyperparameter {key!r} is one of rl_zoo3's that food-fetch train "
+                             "does not implement: train with python -m rl_zoo3.train instead")
         if key in RESERVED:
             raise TrainError(f"bad hyperparameter {key}={_short(value)}: food-fetch train sets "
                              f"it ({RESERVED[key]})")
@@ -395,9 +421,38 @@ def _resume_state(algo: str, run: dict[str, Any], ctor: dict[str, Any],
     return done, resume_kwargs
 
 
+def _run_settings(given: dict[str, int | None], legacy: dict[str, Any], algo: str,
+                  total: int) -> dict[str, int]:
+    """The run settings: the arguments given, else the earlier hyperparameter names in the
+    overrides, else the defaults (a quarter of the budget; 20 episodes).  As in rl_zoo3, a
+    frequency <= 0 switches evaluation or checkpoints off."""
+    settings = dict(given)
+    for old, value in legacy.items():
+        _check_range(algo, old, value)
+        new = LEGACY[old]
+        if settings.get(new) is not None and settings[new] != value:
+            raise TrainError(f"{SETTINGS[new]} {settings[new]} and --hyperparams "
+                             f"{old}={_short(value)} disagree: give {SETTINGS[new]} only")
+        settings[new] = value
+    every = max(1, math.ceil(total / EVALS_PER_RUN))
+    out = {"eval_freq": every, "save_freq": every, "n_eval_episodes": DEFAULT_EVAL_EPISODES}
+    for key, flag in SETTINGS.items():
+        value = settings.get(key)
+        if value is None:
+            continue
+        episodes = key == "n_eval_episodes"
+        if (not isinstance(value, int) or isinstance(value, bool)
+                or (episodes and value < 1)):
+            raise TrainError(f"bad run setting {flag} {_short(value)}: must be an integer"
+                             f"{' >= 1' if episodes else ''}")
+        out[key] = value if episodes else max(0, value)
+    return out
+
+
 def _plan(algo: str | None, env_id: str, timesteps: int | None, seed: int, log_dir: Path,
           resume: str | Path | None, hyperparams_file: str | Path | None,
-          overrides: dict[str, Any], eval_enabled: bool) -> _Plan:
+          overrides: dict[str, Any], eval_enabled: bool,
+          given: dict[str, int | None] | None = None) -> _Plan:
     """Check the whole request; reads files, writes none."""
     ids = env_ids()
     if env_id not in ids:
@@ -408,6 +463,8 @@ def _plan(algo: str | None, env_id: str, timesteps: int | None, seed: int, log_d
     if resume is not None:
         algo, data = _checkpoint(resume, algo)
     algo = algo or "ppo"
+    overrides = dict(overrides)
+    legacy = {k: overrides.pop(k) for k in LEGACY if k in overrides}
     hp = load_hyperparams(algo, env_id, hyperparams_file, overrides)
     run = {k: hp.pop(k) for k in RUN_KEYS if k in hp}
     ctor = hp
@@ -423,8 +480,9 @@ def _plan(algo: str | None, env_id: str, timesteps: int | None, seed: int, log_d
         raise TrainError(f"--timesteps {total} is not past the checkpoint's {done} steps "
                          "(--timesteps counts them): nothing to train")
 
+    settings = _run_settings(dict(given or {}), legacy, algo, total)
     plan = _Plan(algo=algo, env_id=env_id, total=total, seed=seed, log_dir=log_dir, ctor=ctor,
-                 run=run, source=source, overrides=dict(overrides),
+                 run=run, settings=settings, source=source, overrides=dict(overrides),
                  resume=Path(resume) if resume is not None else None, done=done,
                  resume_kwargs=resume_kwargs)
     if log_dir.exists() and not log_dir.is_dir():
@@ -677,20 +735,25 @@ def train(algo: str | None, env_id: str, timesteps: int | None, seed: int,
           log_dir: str | Path, *, resume: str | Path | None = None,
           hyperparams_file: str | Path | None = None, overrides: dict[str, Any] | None = None,
           progress: bool = True, threads: int = 1, verbose: int = 0, eval_enabled: bool = True,
-          command: list[str] | None = None) -> Path:
+          command: list[str] | None = None, eval_freq: int | None = None,
+          n_eval_episodes: int | None = None, save_freq: int | None = None) -> Path:
     """Train and save ``log_dir/model.zip``; returns its path.
 
     ``algo`` None: the checkpoint's algorithm when resuming, else PPO.  ``timesteps`` is the
     total budget (the YAML's ``n_timesteps`` when None), the checkpoint's steps included when
     resuming from ``resume`` (a checkpoint .zip).  PPO collects whole rollouts of
     ``n_steps x n_envs`` steps, so it may stop up to one rollout past the budget.
+    ``eval_freq`` and ``save_freq`` (steps; <= 0: off) default to a quarter of the budget,
+    ``n_eval_episodes`` to 20; ``overrides`` may also give them as ``eval_freq``,
+    ``n_eval_episodes`` and ``checkpoint_freq``.
     """
     import torch
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 
     log_dir = Path(log_dir)
+    given = {"eval_freq": eval_freq, "n_eval_episodes": n_eval_episodes, "save_freq": save_freq}
     plan = _plan(algo, env_id, timesteps, seed, log_dir, resume, hyperparams_file,
-                 dict(overrides or {}), eval_enabled)
+                 dict(overrides or {}), eval_enabled, given)
     torch.set_num_threads(max(1, int(threads)))
     env, model, eval_env = _build(plan, verbose, eval_enabled)
     # Only now, with everything checked and built, does the log dir change.
@@ -710,6 +773,7 @@ def train(algo: str | None, env_id: str, timesteps: int | None, seed: int,
                        **plan.run}
     config = {"algo": plan.algo, "env": env_id, "seed": seed, "timesteps": plan.total,
               "hyperparams": hyperparams,
+              "run_settings": {**plan.settings, "eval": bool(eval_enabled)},
               "resumed_from": str(resume) if resume is not None else None,
               "resumed_at_step": plan.done if resume is not None else None,
               "threads": threads, "versions": _versions(),
@@ -720,9 +784,9 @@ def train(algo: str | None, env_id: str, timesteps: int | None, seed: int,
     _write_config(log_dir / "config.yml", config)
 
     callbacks: list[Any] = [_progress_callback(plan.total, progress)]
-    if plan.checkpoint_freq > 0:
+    if plan.save_freq > 0:
         callbacks.append(CheckpointCallback(
-            save_freq=max(1, plan.checkpoint_freq // plan.n_envs),
+            save_freq=max(1, plan.save_freq // plan.n_envs),
             save_path=str(log_dir / "checkpoints"), save_replay_buffer=plan.algo == "sac"))
     if eval_env is not None:
         callbacks.append(_eval_callback(plan, eval_env))

@@ -22,6 +22,7 @@ class UsageError(Exception):
 EXTRAS: dict[str, tuple[str, ...]] = {
     "figures": ("matplotlib", "tqdm"),
     "train": ("stable_baselines3", "torch", "yaml", "tqdm"),
+    "zoo": ("rl_zoo3",),
     "datasets": ("minari", "h5py", "PIL"),
 }
 

@@ -9,7 +9,8 @@ from agents.cli.common import UsageError, finite, require_extra, seed
 
 HELP = "train PPO or SAC on a FoodFetch environment (Stable-Baselines3)"
 DESCRIPTION = ("Train PPO or SAC with the hyperparameters shipped for the environment "
-               "id (agents/hyperparams/<algo>.yml, rl-baselines3-zoo style). Writes "
+               "id (agents/hyperparams/<algo>.yml, which python -m rl_zoo3.train --conf-file "
+               "reads as they are). Writes "
                "model.zip, config.yml (to repeat the run), progress.csv, monitor/, eval/ "
                "(periodic evaluation, best model) and checkpoints/ under --log-dir. Needs the "
                "train extra (stable-baselines3, torch).")
@@ -28,6 +29,10 @@ def _log_dir(text: str) -> Path:
     if probe.exists() and (not probe.is_dir() or not os.access(probe, os.W_OK)):
         raise argparse.ArgumentTypeError(f"cannot write to {text!r}")
     return p
+
+
+def _int(text: str) -> int:
+    return int(finite(int)(text))
 
 
 def _positive_int(text: str) -> int:
@@ -51,7 +56,8 @@ def cmd_train(args: argparse.Namespace) -> int:
                     resume=args.resume, hyperparams_file=args.hyperparams_file,
                     overrides=overrides, progress=not args.no_progress, threads=args.threads,
                     verbose=args.verbose, eval_enabled=not args.no_eval,
-                    command=["food-fetch", *sys.argv[1:]])
+                    command=["food-fetch", *sys.argv[1:]], eval_freq=args.eval_freq,
+                    n_eval_episodes=args.eval_episodes, save_freq=args.save_freq)
     except TrainError as exc:
         raise UsageError(f"food-fetch train: {exc}") from None
     print(f"saved model       {out}")
@@ -81,16 +87,26 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    "replay buffer saved next to it). The algorithm's hyperparameters are the "
                    "checkpoint's; --hyperparams may change only those SB3 re-applies on "
                    "loading (e.g. learning_rate, n_steps, batch_size, n_epochs for PPO), "
-                   "others are refused; n_envs, eval_freq, ... apply as for a new run. "
+                   "others are refused; n_envs, env_kwargs and the run settings apply as "
+                   "for a new run. "
                    "Resuming into the --log-dir of the same run appends to its monitor, "
                    "progress and evaluation logs")
     p.add_argument("--hyperparams-file", default=None, metavar="YAML",
                    help="use this YAML instead of the shipped one (same layout)")
     p.add_argument("--hyperparams", nargs="*", default=[], metavar="KEY=VALUE",
                    help="override hyperparameters, values read as YAML "
-                   "(e.g. learning_rate=1e-3 n_envs=2); n_envs: 1 to 64; n_timesteps, "
-                   "n_eval_episodes: integers >= 1; eval_freq, checkpoint_freq: integers "
-                   ">= 0 (0: off)")
+                   "(e.g. learning_rate=1e-3 n_envs=2); n_envs: 1 to 64; n_timesteps: an "
+                   "integer >= 1. Also taken here under their earlier names: eval_freq, "
+                   "n_eval_episodes, checkpoint_freq (the three options below)")
+    # The run settings, named and read as rl_zoo3's train flags (<= 0: off).
+    p.add_argument("--eval-freq", type=_int, default=None, metavar="N",
+                   help="evaluate every N steps into eval/ (<= 0: never; default: a quarter "
+                   "of the budget)")
+    p.add_argument("--eval-episodes", type=_positive_int, default=None, metavar="N",
+                   help="episodes per evaluation (default: 20)")
+    p.add_argument("--save-freq", type=_int, default=None, metavar="N",
+                   help="checkpoint every N steps into checkpoints/ (<= 0: never; default: a "
+                   "quarter of the budget)")
     p.add_argument("--threads", type=_positive_int, default=1, metavar="K",
                    help="torch threads (default: 1)")
     p.add_argument("--no-eval", action="store_true", help="skip the periodic evaluation")
