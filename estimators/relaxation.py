@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -355,6 +355,13 @@ def _exp_jac(s: NDArray[np.float64], m_inf: float, a: float, lam: float):
     return np.column_stack((np.ones_like(s), e, -a * s * e))
 
 
+def _trf(tol: float) -> dict[str, Any]:
+    """scipy's bounded trust-region solver as every fit here uses it: Jacobian-scaled steps,
+    ``tol`` on x, the cost and the gradient, at most 200 evaluations."""
+    return {"method": "trf", "x_scale": "jac", "xtol": tol, "ftol": tol, "gtol": tol,
+            "max_nfev": 200}
+
+
 def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float) -> HoldFit:
     """Fit eq. 6 to the hold samples ``t > t_d`` with ``scipy.optimize.curve_fit``.
 
@@ -397,12 +404,7 @@ def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float) -> HoldFit:
             p0=p0,
             jac=_exp_jac,
             bounds=((-np.inf, -np.inf, 0.0), (np.inf, np.inf, np.inf)),
-            method="trf",
-            x_scale="jac",
-            xtol=1e-14,
-            ftol=1e-14,
-            gtol=1e-14,
-            max_nfev=200,
+            **_trf(1e-14),
         )
         converged = bool(np.all(np.isfinite(popt)) and np.all(np.isfinite(pcov)))
     except (RuntimeError, ValueError):
@@ -896,12 +898,7 @@ def _least_squares_fit(
                 resid,
                 np.asarray(x0),
                 bounds=(lb, ub),
-                method="trf",
-                x_scale="jac",
-                xtol=1e-12,
-                ftol=1e-12,
-                gtol=1e-12,
-                max_nfev=200,
+                **_trf(1e-12),
             )
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
         raise EstimationError(f"full fit failed: {type(exc).__name__}: {exc}") from None

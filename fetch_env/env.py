@@ -229,7 +229,8 @@ _COMMON_DOC = """
     episodes (and lost, 0.98 -> 0.76, over 8); on 40 diced mixes 86 % of the pieces ended
     fetched or not as at a 2.5 ms step, against 92 % at the default 5 ms and a 93 % chaos
     floor (the 2.5 ms run against itself with every piece moved 1 nm), and 2-3x as many mixes
-    crushed a soft die (``benchmarks/bench_step_size.py --twins``, ``docs/validation/step-size.md``).
+    crushed a soft die (``benchmarks/bench_step_size.py --twins``,
+    ``docs/validation/step-size.md``).
 
     ## Version history
     - v0 (0.2.0): the model's estimates are calibrated (``probe_calibrated``; False gives the

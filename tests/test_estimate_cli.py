@@ -22,19 +22,8 @@ def run(*args: str) -> subprocess.CompletedProcess[str]:
 
 def test_estimate_json_contract(tmp_path) -> None:
     out = tmp_path / "e.json"
-    p = run(
-        "estimate",
-        "--omega",
-        "0.04",
-        "--hold",
-        "6",
-        "--slide-time",
-        "2",
-        "--noise",
-        "0.01",
-        "--json",
-        str(out),
-    )
+    p = run("estimate", "--omega", "0.04", "--hold", "6", "--slide-time", "2", "--noise", "0.01",
+            "--json", str(out))
     assert p.returncode == 0, p.stderr
     r = json.loads(out.read_text())
     for key in ("true", "estimate", "interval", "r2_clamp", "r2_hold"):
@@ -59,19 +48,8 @@ def test_estimate_json_contract(tmp_path) -> None:
 
 def test_estimate_three_step_slip_only(tmp_path) -> None:
     out = tmp_path / "s.json"
-    p = run(
-        "estimate",
-        "--probe",
-        "slip",
-        "--slide-time",
-        "2",
-        "--shape",
-        "sphere",
-        "--method",
-        "three-step",
-        "--json",
-        str(out),
-    )
+    p = run("estimate", "--probe", "slip", "--slide-time", "2", "--shape", "sphere", "--method",
+            "three-step", "--json", str(out))
     assert p.returncode == 0, p.stderr
     r = json.loads(out.read_text())
     assert r["estimate"]["g1"] is None and r["estimate"]["mu"] is not None
@@ -120,18 +98,8 @@ def test_reproduce_bad_input_one_line_exit_2(tmp_path, args, needle) -> None:
 
 
 def test_reproduce_friction_tiny(tmp_path) -> None:
-    p = run(
-        "reproduce",
-        "friction",
-        "--out",
-        str(tmp_path),
-        "--shapes",
-        "cube",
-        "--mus",
-        "0.3",
-        "--slide-time",
-        "2",
-    )
+    p = run("reproduce", "friction", "--out", str(tmp_path), "--shapes", "cube", "--mus", "0.3",
+            "--slide-time", "2")
     assert p.returncode == 0, p.stderr
     for name in ("friction.csv", "friction.md", "friction_by_shape.md", "fig4_friction.png"):
         assert (tmp_path / name).stat().st_size > 0, name

@@ -17,19 +17,15 @@ import pytest
 
 from agents import evaluate as ev
 from agents.cli import main
-from tests.cli_helpers import assert_one_line_error, run_cli
+from tests.cli_helpers import assert_help_lists, assert_one_line_error, interrupt_episode, run_cli
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_help_is_clear(capsys: pytest.CaptureFixture[str]) -> None:
-    with pytest.raises(SystemExit) as exc:
-        main(["evaluate", "--help"])
-    assert exc.value.code == 0
-    out = capsys.readouterr().out
-    for opt in ("--agent", "--env", "--episodes", "--seed", "--workers", "--json", "--csv",
-                "--video", "--plots", "--search-episodes", "--env-kwargs", "95 %", "regret"):
-        assert opt in out
+    assert_help_lists("evaluate", ("--agent", "--env", "--episodes", "--seed", "--workers",
+                                   "--json", "--csv", "--video", "--plots", "--search-episodes",
+                                   "--env-kwargs", "95 %", "regret"), capsys)
 
 
 @pytest.mark.parametrize("argv, fragment", [
@@ -177,16 +173,7 @@ def test_env_kwargs_reach_every_episode(tmp_path: Path,
 
 def test_interrupted_evaluation_still_writes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                             capsys: pytest.CaptureFixture[str]) -> None:
-    calls = {"n": 0}
-    real = ev.run_episode
-
-    def flaky(task: ev.Task) -> dict:
-        calls["n"] += 1
-        if calls["n"] == 3:
-            raise KeyboardInterrupt
-        return real(task)
-
-    monkeypatch.setattr(ev, "run_episode", flaky)
+    interrupt_episode(monkeypatch, 3)
     js = tmp_path / "partial.json"
     code, out, _ = run_cli(["evaluate", "--agent", "study", "--episodes", "5", "--json", str(js),
                          "--quiet"], capsys)

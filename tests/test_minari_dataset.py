@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from agents import evaluate as ev
-from tests.cli_helpers import assert_one_line_error, run_cli
+from tests.cli_helpers import assert_one_line_error, interrupt_episode, run_cli
 
 ENV_ID = "FoodFetch-Block-v0"
 AGENTS = ("study", "random")
@@ -112,13 +112,14 @@ def test_any_worker_count_gives_the_same_dataset(recorded: dict[str, Any]) -> No
                 np.testing.assert_array_equal(a.infos[key], b.infos[key])
 
 
-@pytest.mark.parametrize("argv, fragment", [
-    (["--dataset", "food-fetch/taken"], "dataset food-fetch/taken/study-v0 exists"),
-    (["--dataset", "x"], "'x' is not a Minari namespace"),
-    (["--dataset", "a b"], "'a b' is not a Minari namespace"),
-    (["--dataset", "/abs/name"], "is not a Minari namespace"),
-    (["--dataset", "ns/"], "is not a Minari namespace"),
-    (["--dataset-overwrite"], "--dataset-overwrite needs --dataset NAME"),
+# (what the error names, the options that cause it)
+@pytest.mark.parametrize("fragment, argv", [
+    ("dataset food-fetch/taken/study-v0 exists", ["--dataset", "food-fetch/taken"]),
+    ("'x' is not a Minari namespace", ["--dataset", "x"]),
+    ("'a b' is not a Minari namespace", ["--dataset", "a b"]),
+    ("is not a Minari namespace", ["--dataset", "/abs/name"]),
+    ("is not a Minari namespace", ["--dataset", "ns/"]),
+    ("--dataset-overwrite needs --dataset NAME", ["--dataset-overwrite"]),
 ])
 def test_dataset_mistakes_exit_2_before_any_episode(
         argv: list[str], fragment: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
@@ -151,15 +152,7 @@ def test_ctrl_c_writes_only_finished_episodes_and_never_half_a_dataset(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
-    real, calls = ev.run_episode, {"n": 0}
-
-    def flaky(task: ev.Task) -> dict:
-        calls["n"] += 1
-        if calls["n"] == 3:
-            raise KeyboardInterrupt
-        return real(task)
-
-    monkeypatch.setattr(ev, "run_episode", flaky)
+    calls = interrupt_episode(monkeypatch, 3)
     argv = ["evaluate", "--agent", "study", "--episodes", "5", "--quiet", "--dataset", "ff/cc"]
     code, out, _ = run_cli(argv, capsys)
     assert code == 130 and "dataset (partial) ff/cc/study-v0 (2 episodes)" in out
