@@ -68,7 +68,7 @@ def _summary(e: np.ndarray) -> tuple[float, float, float]:
 #         (all from the hold; 0.52 / 0.52 / 0.55 with K1 from the full fit).
 # With a 10 ms contact and tau1 from the full fit: g1 6.2 / 13.4 / 23 %, tau1 13.1 / 28.2 /
 # 54 %, 63 of 64 identified; with the stiffened contact alone: g1 2.3 / 4.1 / 12 %, tau1 10.8 /
-# 18.6 / 54 %.  Before g1 came from the hold (04b99fa): g1 11.2 % / 21.6 %.  The bars: mu's as
+# 18.6 / 54 %.  With g1 from the full fit: g1 11.2 % / 21.6 %.  The bars: mu's as
 # set on the first 16 scenes, its "max" read as the 95th percentile (the largest of 16
 # samples estimates about that quantile, the largest of 64 about the 98th); g1's and tau1's
 # set at the stiffened-contact figures with about 2x / 1.7x room, so that losing either change

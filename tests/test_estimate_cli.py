@@ -126,8 +126,8 @@ def test_reproduce_viscoelastic_tiny(tmp_path) -> None:
 
 # ------------------------------------------------------------------ in-process, no simulation
 @pytest.mark.parametrize(("args", "fragment"), [
-    # the slip probe used to ignore these (always theta_d 0.06, omega 0.1, hold 0.5): now they
-    # apply to it and are validated as simulate validates them
+    # these apply to the slip probe too (not only its defaults theta_d 0.06, omega 0.1,
+    # hold 0.5) and are validated as simulate validates them
     (["--probe", "slip", "--theta-d", "0"], "theta_d must be in (0.0, 0.3] rad, got 0.0"),
     (["--probe", "slip", "--hold", "-3"], "hold must be in [0, 600] s, got -3.0"),
     (["--probe", "slip", "--omega", "99"], "omega must be in [0.001, 2.0] rad/s, got 99.0"),

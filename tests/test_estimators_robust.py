@@ -32,7 +32,8 @@ def trace(omega: float = 0.02, hold: float = 15.0, t_start: float = 0.0):
 @pytest.mark.parametrize("estimator", [estimate_full_fit, estimate_three_step])
 def test_sagging_measured_angle_is_a_hold(estimator) -> None:
     """The simulator's measured angle sags ~1e-5 rad under load and recovers over seconds; a
-    one-sample dip of 2.6e-5 rad at t_d too.  That is still a hold (it used to be refused)."""
+    one-sample dip of 2.6e-5 rad at t_d too.  That is still a hold, not a reason to refuse
+    the trace."""
     t, theta, m = trace()
     td = 0.0244 / 0.02
     sag = np.where(t > td, -1.5e-5 * np.exp(-(t - td) / 3.0), 0.0)

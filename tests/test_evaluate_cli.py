@@ -107,7 +107,7 @@ def test_workers_are_capped_at_the_number_of_tasks(monkeypatch: pytest.MonkeyPat
 
 def test_one_task_starts_no_pool(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                  capsys: pytest.CaptureFixture[str]) -> None:
-    """``--workers 64 --episodes 1`` used to start 64 processes for one episode (~3 min)."""
+    """``--workers 64 --episodes 1`` starts no pool of 64 processes for one episode (~3 min)."""
     import multiprocessing
 
     def no_pool(_method: str) -> None:

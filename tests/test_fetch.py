@@ -208,8 +208,8 @@ def test_first_build_in_a_process_compiles_like_every_later_one() -> None:
 def test_bit_identical_twice_in_one_process_and_across_processes() -> None:
     first = _trace_digest()
     assert _trace_digest() == first
-    # The other process first compiles other scenes: MuJoCo's asset cache used to make the
-    # compiled flex stiffness depend on that history (last bits), so this must hold too.
+    # The other process first compiles other scenes: MuJoCo's asset cache can make the
+    # compiled flex stiffness depend on that history (last bits); the scene must not.
     code = ("import tests.test_fetch as t, hashlib; "
             "from fetch_env.layouts import single_block; from fetch_env.scene import build_scene; "
             "[build_scene(single_block(s, 0.017)) for s in ('cube', 'ellipsoid', 'sphere')]; "

@@ -16,7 +16,7 @@ from tests.cli_helpers import assert_one_line_error, run_cli
     (["friction", "--mus", "0"], "--mus values must be in (0, 2], got 0"),
     (["friction", "--noise", "2"], "--noise must be in [0, 0.5], got 2"),
     (["friction", "--seed", "abc"], "--seed: not an integer: 'abc'"),
-    # the tqdm bar used to be printed before this error (two stderr lines)
+    # checked before the tqdm bar starts (else two stderr lines)
     (["friction", "--slide-time", "0"], "--slide-time must be in (0, 120] s, got 0"),
     (["viscoelastic", "--hold", "0.1"], "--hold must be in [0.5, 600] s, got 0.1"),
     (["viscoelastic", "--clamp-weight", "0"], "--clamp-weight must be in (0, 1e6], got 0"),
