@@ -523,15 +523,23 @@ def _mu_diagnostics(mu: float, est: Any, envelope: float, ratio: np.ndarray, gri
     (``sd_noise_mu``), the spread of the force ratio below mu (``mu_spread``: its median
     over mu, logged; a stick-slipping piece sits far below) and the share of the late slide
     the blades gripped (``mu_grip``)."""
-    lr = (0.5 * abs(math.log(est.mu_left / est.mu_right))
-          if est is not None and est.mu_left > 0 and est.mu_right > 0 else 0.0)
-    noise = 0.0
-    if est is not None and est.interval[0] > 0 and est.interval[1] > est.interval[0]:
-        noise = math.log(est.interval[1] / est.interval[0]) / (2 * 1.96)
-    gap = abs(math.log(envelope / mu)) if envelope > 0 else 0.0
+    noise, gap, lr = _mu_log_parts(mu, est, envelope)
     return {"mu_plateau": float(est is not None), "mu_gap": gap,
             "mu_lr": lr, "sd_noise_mu": noise,
             "mu_spread": math.log(max(float(np.median(ratio)) / mu, 1e-6)), "mu_grip": grip}
+
+
+def _mu_log_parts(mu: float, est: Any, envelope: float) -> tuple[float, float, float]:
+    """On the log scale: the friction estimator's noise sd, the gap of mu to the force
+    ratio's envelope and half the gap between the two half-spoons (0 where not defined)."""
+    noise = lr = 0.0
+    if est is not None:
+        lo, hi = est.interval
+        noise = (math.log(hi / lo) / (2 * 1.96)) if lo > 0 and hi > lo else 0.0
+        if est.mu_left > 0 and est.mu_right > 0:
+            lr = 0.5 * abs(math.log(est.mu_left / est.mu_right))
+    gap = abs(math.log(envelope / mu)) if envelope > 0 else 0.0
+    return noise, gap, lr
 
 
 def _mu_sd_log(mu: float, est: Any, envelope: float) -> float:
@@ -539,12 +547,7 @@ def _mu_sd_log(mu: float, est: Any, envelope: float) -> float:
     plateau with the envelope and of the two half-spoons (see :func:`estimate_mu`)."""
     if est is None:
         return abs(math.log(envelope / mu)) + 0.05  # the envelope alone: no check of it
-    lo, hi = est.interval
-    noise = (math.log(hi / lo) / (2 * 1.96)) if lo > 0 and hi > lo else 0.0
-    parts = [noise, abs(math.log(envelope / mu)) if envelope > 0 else 0.0]
-    if est.mu_left > 0 and est.mu_right > 0:
-        parts.append(0.5 * abs(math.log(est.mu_left / est.mu_right)))
-    return float(np.sqrt(np.sum(np.square(parts))))
+    return float(np.sqrt(np.sum(np.square(_mu_log_parts(mu, est, envelope)))))
 
 
 def _relaxation_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | None,
