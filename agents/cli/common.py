@@ -55,6 +55,37 @@ def finite(kind: type = float):
     return parse
 
 
+def integer(text: str) -> int:
+    """An integer option (a finite number with no fractional part)."""
+    return int(finite(int)(text))
+
+
+def positive_int(text: str) -> int:
+    """An integer option >= 1."""
+    value = integer(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
+    return value
+
+
+def out_dir(path: str) -> Path:
+    """``--out``: a directory that exists or can be created (its nearest existing ancestor is
+    a writable directory).  Only checked here: the command creates it once every input is known
+    good, so a rejected call leaves no empty directory behind."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise argparse.ArgumentTypeError(f"not a directory: {path!r}")
+    probe = p.absolute()
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir():
+        raise argparse.ArgumentTypeError(f"cannot create {path!r}: {str(probe)!r} is not a "
+                                         "directory")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"cannot write to {path!r}")
+    return p
+
+
 MAX_SEED = 2**32 - 1  # numpy's and gymnasium's seeds are unsigned 32-bit
 
 
@@ -133,12 +164,17 @@ def make_material(args: argparse.Namespace) -> Any:
                     yield_strain=args.yield_strain)
 
 
-def write_json(path: Path, payload: dict[str, Any]) -> None:
+def write_text(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` atomically (a temporary file, then ``os.replace``)."""
     tmp = path.with_name(path.name + ".part")
     try:
-        with open(tmp, "w") as fh:
-            json.dump(payload, fh)
+        tmp.write_text(text)
         os.replace(tmp, path)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
         raise UsageError(f"cannot write {str(path)!r}: {exc.strerror}") from None
+
+
+def write_json(path: Path, payload: dict[str, Any]) -> None:
+    """Write ``payload`` as JSON to ``path`` atomically."""
+    write_text(path, json.dumps(payload))

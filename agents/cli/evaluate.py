@@ -9,12 +9,12 @@ import os
 import platform
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 from agents.cli.common import (
     UsageError,
-    finite,
+    out_dir,
+    positive_int,
     require_extra,
     seed,
     writable,
@@ -33,25 +33,6 @@ DESCRIPTION = ("Run each agent on the same seeded scenes (episode i uses "
 
 
 DEFAULT_AGENTS: tuple[str, ...] = ("random", "study", "model-based")
-
-
-def _positive_int(text: str) -> int:
-    value = finite(int)(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
-    return int(value)
-
-
-def _out_dir(text: str) -> Path:
-    p = Path(text)
-    probe = p
-    while not probe.exists() and probe.parent != probe:
-        probe = probe.parent
-    if p.exists() and not p.is_dir():
-        raise argparse.ArgumentTypeError(f"not a directory: {text!r}")
-    if not probe.is_dir() or not os.access(probe, os.W_OK):
-        raise argparse.ArgumentTypeError(f"cannot write to directory {text!r}")
-    return p
 
 
 def _env_kwarg(text: str) -> tuple[str, Any]:
@@ -298,14 +279,14 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    help="keyword arguments of the environment, values read as JSON where "
                    "they are JSON, else as strings (e.g. fetch_impratio=1000 "
                    "estimator=oracle); checked before any episode runs")
-    p.add_argument("--episodes", type=_positive_int, default=20, metavar="N",
+    p.add_argument("--episodes", type=positive_int, default=20, metavar="N",
                    help="episodes (scenes) per agent (default: 20)")
     p.add_argument("--seed", type=seed, default=0, metavar="S",
                    help="seed of the first scene, 0 to 2**32-1 (default: 0)")
-    p.add_argument("--workers", type=_positive_int, default=1, metavar="K",
+    p.add_argument("--workers", type=positive_int, default=1, metavar="K",
                    help="worker processes, at most one per (agent, episode) task (more are "
                    "not started); any K gives the same numbers (default: 1)")
-    p.add_argument("--search-episodes", type=_positive_int, default=None, metavar="N",
+    p.add_argument("--search-episodes", type=positive_int, default=None, metavar="N",
                    help="run 'search' (~20 simulations per scene) on the first N scenes "
                    "only; regret is then paired on those (default: all)")
     p.add_argument("--json", type=writable, default=None, metavar="FILE",
@@ -314,9 +295,9 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    help="also put every episode's record in the JSON")
     p.add_argument("--csv", type=writable, default=None, metavar="FILE",
                    help="write one row per (agent, episode)")
-    p.add_argument("--plots", type=_out_dir, default=None, metavar="DIR",
+    p.add_argument("--plots", type=out_dir, default=None, metavar="DIR",
                    help="write reward.png, fetch_rate.png, theta_vs_stiffness.png")
-    p.add_argument("--video", type=_out_dir, default=None, metavar="DIR",
+    p.add_argument("--video", type=out_dir, default=None, metavar="DIR",
                    help="record each agent's first episode (needs an OpenGL backend, e.g. "
                    "MUJOCO_GL=egl)")
     p.add_argument("--dataset", default=None, metavar="NAME",

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from agents.cli.common import UsageError, finite, require_extra, seed
+from agents.cli.common import UsageError, finite, out_dir, require_extra, seed, write_text
 from agents.study import fetch_rate, friction, viscoelastic
 from agents.study.report import StudyOptionError, StudyResult
 
@@ -124,24 +124,6 @@ EXPERIMENTS: dict[str, Experiment] = {
 }
 
 
-def out_dir(path: str) -> Path:
-    """``--out``: a directory that exists or can be created (its nearest existing ancestor is
-    a writable directory).  Only checked here: :func:`cmd_reproduce` creates it once every
-    input is known good, so a rejected call leaves no empty directory behind."""
-    p = Path(path)
-    if p.exists() and not p.is_dir():
-        raise argparse.ArgumentTypeError(f"not a directory: {path!r}")
-    probe = p.absolute()
-    while not probe.exists():
-        probe = probe.parent
-    if not probe.is_dir():
-        raise argparse.ArgumentTypeError(f"cannot create {path!r}: {str(probe)!r} is not a "
-                                         "directory")
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise argparse.ArgumentTypeError(f"cannot write to {path!r}")
-    return p
-
-
 def make_out_dir(path: Path) -> Path | None:
     """Create ``path`` (parents too); the topmost directory this created, None if it existed."""
     top = None
@@ -155,17 +137,6 @@ def make_out_dir(path: Path) -> Path | None:
         raise UsageError(f"{PREFIX}: --out: cannot create {str(path)!r}: "
                          f"{exc.strerror}") from None
     return top
-
-
-def write_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (a temporary file, then ``os.replace``)."""
-    tmp = path.with_name(path.name + ".part")
-    try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise UsageError(f"cannot write {str(path)!r}: {exc.strerror}") from None
 
 
 def save_figure(fig: Any, path: Path) -> None:

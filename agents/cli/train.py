@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from agents.cli.common import UsageError, finite, require_extra, seed
+from agents.cli.common import UsageError, integer, positive_int, require_extra, seed
 
 HELP = "train PPO or SAC on a FoodFetch environment (Stable-Baselines3)"
 DESCRIPTION = ("Train PPO or SAC with the hyperparameters shipped for the environment "
@@ -29,17 +29,6 @@ def _log_dir(text: str) -> Path:
     if probe.exists() and (not probe.is_dir() or not os.access(probe, os.W_OK)):
         raise argparse.ArgumentTypeError(f"cannot write to {text!r}")
     return p
-
-
-def _int(text: str) -> int:
-    return int(finite(int)(text))
-
-
-def _positive_int(text: str) -> int:
-    value = finite(int)(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
-    return int(value)
 
 
 def cmd_train(args: argparse.Namespace) -> int:
@@ -72,7 +61,7 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    help="algorithm (default: ppo; with --resume, the checkpoint's)")
     p.add_argument("--env", default="FoodFetch-Block-v0", metavar="ID",
                    help=f"environment id: {ENV_HELP} (default: FoodFetch-Block-v0)")
-    p.add_argument("--timesteps", type=_positive_int, default=None, metavar="N",
+    p.add_argument("--timesteps", type=positive_int, default=None, metavar="N",
                    help="total environment steps (= fetches); default: n_timesteps of the "
                    "YAML. With --resume, N counts the checkpoint's steps too: it trains N "
                    "minus those, and N must exceed them. PPO collects whole rollouts of "
@@ -99,15 +88,15 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    "integer >= 1. Also taken here under their earlier names: eval_freq, "
                    "n_eval_episodes, checkpoint_freq (the three options below)")
     # The run settings, named and read as rl_zoo3's train flags (<= 0: off).
-    p.add_argument("--eval-freq", type=_int, default=None, metavar="N",
+    p.add_argument("--eval-freq", type=integer, default=None, metavar="N",
                    help="evaluate every N steps into eval/ (<= 0: never; default: a quarter "
                    "of the budget)")
-    p.add_argument("--eval-episodes", type=_positive_int, default=None, metavar="N",
+    p.add_argument("--eval-episodes", type=positive_int, default=None, metavar="N",
                    help="episodes per evaluation (default: 20)")
-    p.add_argument("--save-freq", type=_int, default=None, metavar="N",
+    p.add_argument("--save-freq", type=integer, default=None, metavar="N",
                    help="checkpoint every N steps into checkpoints/ (<= 0: never; default: a "
                    "quarter of the budget)")
-    p.add_argument("--threads", type=_positive_int, default=1, metavar="K",
+    p.add_argument("--threads", type=positive_int, default=1, metavar="K",
                    help="torch threads (default: 1)")
     p.add_argument("--no-eval", action="store_true", help="skip the periodic evaluation")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
