@@ -2,7 +2,7 @@
 
 Pure numpy/scipy: never imports MuJoCo, so the same code runs on a real robot's logs.
 
-Modules (units: s, rad, m, N, N m; see PAPER.md for eqs. 1-7):
+Modules (units: s, rad, m, N, N m; see docs/study.md for eqs. 1-7):
 
 * :mod:`estimators.sls` -- standard linear solid in the half-spoon's rotational form:
   :class:`ClampGeometry`, :class:`SLSParams` (with Prony ``g1, tau1`` conversion) and the forward

@@ -99,7 +99,7 @@ def _diced(materials: tuple[str, ...], seed: int, n: int) -> Callable[[], tuple[
                              size_range=DICED_SIZE_RANGE)
 
 
-# The study's scenes (PAPER.md, "Setups the study simulated"), by name for reset(options=...).
+# The study's scenes (docs/study.md, "Setups the study simulated"), by name for reset(options=...).
 SCENE_PRESETS: Mapping[str, Callable[[], tuple[Piece, ...]]] = {
     "block": lambda: single_block(),
     "block-hard": lambda: single_block(material=PRESETS["hard-200MPa"]),

@@ -16,10 +16,22 @@ from collections.abc import Sequence
 
 from agents.cli.common import EXIT_USAGE, Parser, UsageError
 
-__all__ = ["SUBCOMMANDS", "build_parser", "main"]
+__all__ = ["SUBCOMMANDS", "build_parser", "main", "version"]
 
 # One module per subcommand, in the order ``--help`` lists them.
 SUBCOMMANDS: tuple[str, ...] = ("simulate", "estimate", "reproduce", "train", "evaluate")
+
+
+def version() -> str:
+    """The installed package's version (its metadata, as ``pip show food-fetch`` gives it);
+    "unknown" when the source tree is run without being installed."""
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as metadata_version
+
+    try:
+        return metadata_version("food-fetch")
+    except PackageNotFoundError:
+        return "unknown (not installed: pip install -e .)"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -30,6 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
             "estimate the food's viscoelasticity and friction, and train and evaluate agents."
         ),
     )
+    parser.add_argument("--version", action="version", version=f"food-fetch {version()}",
+                        help="print the installed version of food-fetch and exit")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for name in SUBCOMMANDS:
         module = importlib.import_module(f"agents.cli.{name}")

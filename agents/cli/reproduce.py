@@ -26,7 +26,7 @@ from agents.study.report import StudyOptionError, StudyResult
 HELP = "rerun one of the study's virtual experiments, writing tables and figures"
 DESCRIPTION = ("Rerun one of the study's virtual experiments in the simulator and write "
                "its tables (CSV, markdown) and figures (PNG) to --out, with the study's reported "
-               "numbers (PAPER.md) beside this project's.")
+               "numbers (docs/study.md) beside this project's.")
 
 PREFIX = "food-fetch reproduce"
 

@@ -1,6 +1,6 @@
 """The study's fetch findings, rerun on the simulator (``food-fetch reproduce fetch-rate``).
 
-Runs the fetches of the study's scenes (PAPER.md, "Results the study reports"): a single row
+Runs the fetches of the study's scenes (docs/study.md, "Results the study reports"): a single row
 of cubes at four spacings, two rows of soft or hard cubes at two clamp angles, diced soft
 pieces at three clamp angles and diced mixes with hard pieces. Every scene is fixed (the
 study's layouts, or diced mixes drawn from fixed seeds), so the table is reproducible.
@@ -21,7 +21,7 @@ import numpy as np
 
 from agents.study.report import StudyResult, progress, pyplot
 
-# The study's fetch: clamp at 0.1 rad/s, lift 5 mm at 5 mm/s (PAPER.md, diced setup).
+# The study's fetch: clamp at 0.1 rad/s, lift 5 mm at 5 mm/s (docs/study.md, diced setup).
 OMEGA = 0.1  # [rad/s]
 LIFT_SPEED = 0.005  # [m/s]
 LIFT_HEIGHT = 0.005  # [m]

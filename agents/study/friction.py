@@ -20,7 +20,7 @@ from agents.study.report import StudyOptionError, StudyResult, Table, check_rang
 HELP = "Fig. 4: mu by induced slippage, cube/ellipsoid/sphere at mu 0.1/0.2/0.3/0.5"
 SHAPES: tuple[str, ...] = ("cube", "ellipsoid", "sphere")
 MUS: tuple[float, ...] = (0.1, 0.2, 0.3, 0.5)
-# PAPER.md: max deviation of the estimated mu at each true mu (absolute, and in %).
+# docs/study.md: max deviation of the estimated mu at each true mu (absolute, and in %).
 STUDY_MAX_DEV = {
     0.1: (0.00132, 1.32),
     0.2: (0.00272, 1.36),

@@ -26,7 +26,7 @@ HELP = "Figs. 5-6: K1, K2, B, g1, tau1 from the moment at omega 0.01-0.04 rad/s"
 OMEGAS: tuple[float, ...] = (0.01, 0.02, 0.03, 0.04)
 THETA_D = 0.0244
 G1, TAU1 = 0.425, 3.667
-# PAPER.md: change of K1, K2, B from omega = 0.01 rad/s to 0.02 / 0.03 / 0.04 rad/s, in %.
+# docs/study.md: change of K1, K2, B from omega = 0.01 rad/s to 0.02 / 0.03 / 0.04 rad/s, in %.
 STUDY_TREND = {
     "K1": (0.735, 6.618, 10.294),
     "K2": (1.105, 6.630, 10.497),
