@@ -1,8 +1,11 @@
-"""Errors raised by the simulator: bad input before any work, divergence during it."""
+"""Errors raised by the simulator: bad input before any work, divergence during it; and the
+warning category of a value that was clipped, capped or replaced before use."""
 
 from __future__ import annotations
 
+import inspect
 import numbers
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -12,6 +15,16 @@ class InvalidParameterError(ValueError):
     """A parameter is out of its valid range; raised before any simulation starts.
 
     The message always names the parameter and the offending value.
+    """
+
+
+class ParameterClippedWarning(UserWarning):
+    """A value was clipped, capped or replaced before it was used (never silently).
+
+    The message names the value, what was given, what was used and why.  The same change is
+    also in the results: an environment's ``info["clipped"]``, the command line's text output
+    and its JSON ``"clipped"`` (``fetch_env.clipping`` lists every place and its rule).  Turn
+    it into an error with ``warnings.simplefilter("error", ParameterClippedWarning)``.
     """
 
 
@@ -69,3 +82,72 @@ def env_error_line(exc: BaseException) -> str:
     lines = str(exc).strip().splitlines()
     line = lines[0] if lines else type(exc).__name__
     return line.split(" was raised from the environment creator")[0]
+
+
+def _short(value: Any, limit: int = 60) -> str:
+    shown = repr(value)
+    return shown if len(shown) <= limit else shown[:limit - 3] + "..."
+
+
+def check_annotated(func: Callable[..., Any], values: Mapping[str, Any]) -> None:
+    """Refuse each argument of ``func`` in ``values`` whose type is not its annotation's.
+
+    Only the simple annotations are checked (``float``, ``int``, ``bool``, ``str``, each
+    optionally ``| None``); others are left to the caller's own checks.  A ``float`` must be a
+    finite real number (:func:`require_finite`), an ``int`` an integer, a ``bool`` ``True`` or
+    ``False``, a ``str`` text.  Run first, so that the range checks that follow compare
+    numbers with numbers instead of raising a bare ``TypeError`` (``"x" < 1``) or
+    ``ValueError`` (an array's ambiguous truth) from inside.
+    """
+    for name, param in inspect.signature(func).parameters.items():
+        if name not in values or name == "self":
+            continue
+        ann = param.annotation
+        text = ann if isinstance(ann, str) else getattr(ann, "__name__", str(ann))
+        parts = {p.strip().strip("'\"") for p in text.split("|")}
+        optional = "None" in parts
+        parts.discard("None")
+        value = values[name]
+        if len(parts) != 1 or (value is None and optional):
+            continue
+        kind = parts.pop()
+        if kind == "float":
+            require_finite(name, value)
+        elif kind == "int":
+            require_int(name, value)
+        elif kind == "bool":
+            require(isinstance(value, bool | np.bool_), name, _Shown(value), "True or False")
+        elif kind == "str":
+            require(isinstance(value, str), name, _Shown(value), "a str")
+
+
+class _Shown:
+    """A value's repr shortened for a one-line error message."""
+
+    def __init__(self, value: Any) -> None:
+        self.text = _short(value)
+
+    def __repr__(self) -> str:
+        return self.text
+
+
+def check_reset(seed: Any, options: Any) -> tuple[int | None, dict[str, Any]]:
+    """An environment's ``reset`` arguments checked: the seed (None or an integer >= 0, as
+    gymnasium takes it; a numpy integer is accepted as a Python one) and the options (None or
+    a mapping; its ``preset`` a name, its ``pieces`` a list or tuple), returned as
+    ``(seed, dict(options))``.  gymnasium would raise its own ``Error`` for a bad seed and
+    ``dict()`` a bare ``TypeError``/``ValueError`` for options that are not a mapping."""
+    if seed is not None:
+        require_int("seed", seed)
+        require(seed >= 0, "seed", seed, "None or an integer >= 0")
+        seed = int(seed)
+    require(options is None or isinstance(options, Mapping), "options", _Shown(options),
+            "None or a dict of reset options")
+    opts = dict(options or {})
+    if "preset" in opts:
+        require(isinstance(opts["preset"], str), "options['preset']", _Shown(opts["preset"]),
+                "a scene preset name (str)")
+    if "pieces" in opts:
+        require(isinstance(opts["pieces"], tuple | list), "options['pieces']",
+                _Shown(opts["pieces"]), "a non-empty list or tuple of Piece")
+    return seed, opts

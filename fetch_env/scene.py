@@ -16,6 +16,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from fetch_env import clipping
+from fetch_env.clipping import ClipRecord
 from fetch_env.errors import InvalidParameterError, require, require_finite
 from fetch_env.layouts import Piece, check_no_overlap
 
@@ -46,6 +48,7 @@ CONDITIONING_LIMIT = 1e4
 # 10 um of its sag at 1000 (tests/test_fetch.py).  At 30 one mix in 40 under-converged
 # MuJoCo's M+K solve (docs/validation/impratio.md).
 MULTI_PIECE_IMPRATIO = 100.0
+BASE_TIMESTEP = 0.005  # [s] the base scene's physics step (assets/fetch_base.xml)
 MIN_CONTACT_TIMECONST = 0.001  # [s] the stiffest contact Geometry allows (stable at the 5 ms step)
 BLADE_HALF_THICKNESS = 0.002  # [m] thick enough that no food vertex can reach the far side
 
@@ -190,12 +193,23 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
     piece, :data:`MULTI_PIECE_IMPRATIO` for several).  Validates everything first (pieces,
     overlaps, geometry) so that nothing is compiled for bad input.
     """
+    require(isinstance(pieces, tuple | list) and len(pieces) > 0, "pieces", pieces,
+            "a non-empty sequence of Piece")
+    require(geometry is None or isinstance(geometry, Geometry), "geometry", geometry,
+            "a Geometry or None")
+    for name, value, lo, hi in (("timestep", timestep, 1e-4, 0.02),
+                                ("impratio", impratio, 1.0, 1e4)):
+        if value is not None:
+            require_finite(name, value)
+            require(lo <= value <= hi, name, value, f"in [{lo:g}, {hi:g}]")
     pieces = tuple(pieces)
     geometry = geometry or Geometry()
     stage_xy = _check_pieces_fit(pieces, geometry)
     pose = _clamp_pose(pieces, geometry, stage_xy)
     mujoco.mj_setCacheCapacity(mujoco.mj_getCache(), 0)  # again, in case a caller re-enabled it
     spec = _base_spec(pieces, geometry, pose, timestep, impratio)
+    # The conditioning cap is no secret: warn (the env and the CLI report it themselves).
+    clipping.warn(young_caps(pieces, spec.option.timestep))
     solref = contact_solref(geometry.contact_timeconst, spec.option.timestep)
     for geom in spec.geoms:
         geom.solref = solref
@@ -329,6 +343,9 @@ def contact_solref(timeconst: float, timestep: float) -> list[float]:
     Even so, the contact's compliance under ``discrete`` grows with the step
     (``docs/validation/probes.md``).
     """
+    for name, value in (("timeconst", timeconst), ("timestep", timestep)):
+        require_finite(name, value)
+        require(value > 0, name, value, "> 0 s")
     if timeconst >= 2 * timestep:
         return [timeconst, 1.0]
     return [-1.0 / timeconst**2, -2.0 / timeconst]
@@ -336,9 +353,29 @@ def contact_solref(timeconst: float, timestep: float) -> list[float]:
 
 def simulated_young(piece: Piece, timestep: float) -> float:
     """The modulus given to MuJoCo: the material's, capped at :data:`CONDITIONING_LIMIT`."""
+    require(isinstance(piece, Piece), "piece", piece, "a Piece")
+    require_finite("timestep", timestep)
+    require(timestep > 0, "timestep", timestep, "> 0 s")
     thinnest = float(min(piece.extents))
     cap = CONDITIONING_LIMIT * piece.material.density * thinnest**2 / timestep**2
     return float(min(piece.material.young, cap))
+
+
+def young_caps(pieces: tuple[Piece, ...] | list[Piece], timestep: float, first: int = 0,
+               where: str = "") -> list[ClipRecord]:
+    """A :mod:`fetch_env.clipping` record for each piece whose modulus
+    :func:`simulated_young` caps at ``timestep`` (none for the others); the pieces are
+    named ``pieces[first + i]``, and ``where`` (e.g. "in the slip probe") ends the reason."""
+    out = []
+    for i, p in enumerate(pieces):
+        used = simulated_young(p, timestep)
+        if used < p.material.young:
+            out.append(clipping.record(
+                "young", f"pieces[{first + i}].young", p.material.young, used,
+                f"MuJoCo's conditioning limit 1e4 rho s^2 / dt^2 for this {p.size * 1e3:g} mm "
+                f"{p.shape} at a {timestep * 1e3:g} ms step{where}; a piece that stiff deforms "
+                "< 1 % in any clamp"))
+    return out
 
 
 def _colour(young: float) -> list[float]:
@@ -349,6 +386,7 @@ def _colour(young: float) -> list[float]:
 
 def initial_state(scene: Scene) -> mujoco.MjData:
     """MjData at the open pose (hinges at 0, faces vertical), servos holding them there."""
+    require(isinstance(scene, Scene), "scene", scene, "a Scene (build_scene)")
     m = scene.model
     d = mujoco.MjData(m)
     for side in ("left", "right"):

@@ -14,7 +14,15 @@ from typing import Any
 
 import numpy as np
 
+from fetch_env import clipping
+from fetch_env.clipping import ClipRecord
 from fetch_env.errors import InvalidParameterError
+
+
+def _short(value: Any, limit: int = 80) -> str:
+    """``repr(value)``, cut to ``limit`` characters for a one-line message."""
+    shown = repr(value)
+    return shown if len(shown) <= limit else shown[:limit - 3] + "..."
 
 # --------------------------------------------------------------------------------------------
 # actions
@@ -44,28 +52,69 @@ def _as_floats(name: str, value: Any, expectation: str) -> np.ndarray:
     except (TypeError, ValueError):
         ok = False
     if not ok:
-        raise InvalidParameterError(f"{name} must be {expectation}, got {value!r}")
+        raise InvalidParameterError(f"{name} must be {expectation}, got {_short(value)}")
     return arr
 
 
-def check_action(action: Any) -> np.ndarray:
-    """The action as a float64 (3,) array; raises naming the value if NaN/inf or misshaped.
-
-    Finite values outside [-1, 1] are clipped (as SB3 does for its policies).
-    """
+def clip_action(action: Any) -> tuple[np.ndarray, list[ClipRecord]]:
+    """The action as a float64 (3,) array clipped to [-1, 1], and a
+    :mod:`fetch_env.clipping` record per component that was outside (as SB3 clips its
+    policies' actions); raises naming the value if it is NaN/inf, not numbers or misshaped."""
     a = _as_floats("action", action,
                    "3 numbers in [-1, 1] (theta_d, omega, lift_speed)")
     if a.shape != (3,):
         raise InvalidParameterError(
             f"action must have shape (3,) (theta_d, omega, lift_speed), got shape {a.shape}: "
-            f"{action!r}")
+            f"{_short(action)}")
     if not np.isfinite(a).all():
-        raise InvalidParameterError(f"action must be finite, got {action!r}")
-    return np.clip(a, -1.0, 1.0)
+        raise InvalidParameterError(f"action must be finite, got {_short(action)}")
+    clipped = np.clip(a, -1.0, 1.0)
+    records = [clipping.record("action", f"action[{i}] ({ACTION_NAMES[i]})", a[i], clipped[i],
+                               "outside the action space [-1, 1]")
+               for i in np.flatnonzero(clipped != a)]
+    return clipped, records
+
+
+def check_action(action: Any) -> np.ndarray:
+    """The action as a float64 (3,) array; raises naming the value if NaN/inf or misshaped.
+
+    Finite values outside [-1, 1] are clipped (as SB3 does for its policies), with a
+    :class:`~fetch_env.errors.ParameterClippedWarning` (:func:`clip_action` returns the
+    changes instead).
+    """
+    a, records = clip_action(action)
+    clipping.warn(records)
+    return a
+
+
+def theta_d_cap(theta_d: float, theta_closed: float) -> tuple[float, list[ClipRecord]]:
+    """An environment's clamp angle, capped at 0.98 of ``theta_closed`` (the angle at which
+    the half-spoons' tips meet for the scene), and the record of the cap where it applied."""
+    applied = min(theta_d, 0.98 * theta_closed)
+    if applied >= theta_d:
+        return theta_d, []
+    return applied, [clipping.record(
+        "theta_d", "theta_d", theta_d, applied,
+        f"capped at 0.98 theta_closed: the tips of the half-spoons meet at {theta_closed:.4f} "
+        "rad for this scene")]
+
+
+def end_stop_records(theta_d: float, extra: Mapping[str, Any],
+                     theta_closed: float) -> list[ClipRecord]:
+    """The record of the controller's end stop where it stopped the clamp short of
+    ``theta_d`` (``extra``: a run's ``SimResult.extra``; a stall is physics, not a cap)."""
+    applied = extra.get("theta_d_applied")
+    if applied is None or extra.get("stalled_at") is not None or not applied < theta_d:
+        return []
+    return [clipping.record(
+        "end_stop", "theta_d", theta_d, applied,
+        f"the controller's end stop, {theta_closed - applied:.3g} rad before the half-spoons' "
+        f"tips meet at {theta_closed:.4f} rad")]
 
 
 def action_to_physical(action: Any) -> dict[str, float]:
-    """Map an action in [-1, 1]^3 linearly onto ``ACTION_RANGES`` (SI units)."""
+    """Map an action in [-1, 1]^3 linearly onto ``ACTION_RANGES`` (SI units); values outside
+    [-1, 1] are clipped with a :class:`~fetch_env.errors.ParameterClippedWarning`."""
     a = check_action(action)
     # (clipped: at a = 1 the rounding of the affine map can land an ulp above the range)
     phys = np.clip(_ACT_LO + (a + 1.0) / 2.0 * (_ACT_HI - _ACT_LO), _ACT_LO, _ACT_HI)
@@ -135,14 +184,39 @@ def _value(values: Mapping[str, float], name: str, default: float | None = None)
         raise InvalidParameterError(f"{name} must be a real number, got None")
     x = _as_floats(name, values[name], "a real number")
     if x.shape != ():
-        raise InvalidParameterError(f"{name} must be a real number, got {values[name]!r}")
+        raise InvalidParameterError(
+            f"{name} must be a real number, got {_short(values[name])}")
     return float(x)
+
+
+def feature_clips(values: Mapping[str, float]) -> list[ClipRecord]:
+    """A :mod:`fetch_env.clipping` record for each layout feature in ``values`` (SI) that the
+    observation clips to ``+-OBS_BOUND`` after scaling (estimated parameters out of bounds
+    are not clipped but reported as not identified)."""
+    out = []
+    for n in OBS_NAMES:
+        if n in VISCO_NAMES or n in FRICTION_NAMES or n not in values:
+            continue
+        v = _value(values, n)
+        e = _encode_one(n, v) if math.isfinite(v) else math.nan
+        if math.isfinite(e) and abs(e) > OBS_BOUND:
+            kept = math.copysign(OBS_BOUND, e)
+            si = 10.0 ** kept * OBS_SCALE[n] if OBS_TRANSFORM[n] == "log10" else kept * OBS_SCALE[n]
+            out.append(clipping.record(
+                "observation", f"observation {n}", v, si,
+                f"{OBS_TRANSFORM[n]} feature {e:.3g} clipped to +-{OBS_BOUND:g}"))
+    return out
 
 
 def encode_observation(values: Mapping[str, float]) -> np.ndarray:
     """SI values -> the float32 observation.  Estimated parameters that are NaN, not positive
     (log features) or outside the bounds after scaling are reported as 0 with their group's
-    flag cleared, so a wild estimate never reaches the policy as a huge number."""
+    flag cleared, so a wild estimate never reaches the policy as a huge number.  Other
+    features beyond the bounds are clipped to them, with a
+    :class:`~fetch_env.errors.ParameterClippedWarning` (:func:`feature_clips` lists them)."""
+    if not isinstance(values, Mapping):
+        raise InvalidParameterError(
+            f"observation values must be a mapping of name -> SI value, got {_short(values)}")
     obs = np.zeros(len(OBS_NAMES), dtype=np.float64)
     flags = {"visco_valid": _value(values, "visco_valid", 0.0),
              "friction_valid": _value(values, "friction_valid", 0.0)}
@@ -172,6 +246,8 @@ def encode_observation(values: Mapping[str, float]) -> np.ndarray:
             if not math.isfinite(v):  # layout features are measured, never missing
                 raise InvalidParameterError(f"{n} must be a finite number, got {v!r}")
             obs[i] = _encode_one(n, v)
+    if np.abs(obs).max() > OBS_BOUND:
+        clipping.warn(feature_clips(values))
     return np.clip(obs, -OBS_BOUND, OBS_BOUND).astype(np.float32)
 
 
@@ -183,7 +259,7 @@ def decode_observation(obs: Any) -> dict[str, float]:
         raise InvalidParameterError(
             f"observation must have shape ({len(OBS_NAMES)},), got {o.shape}")
     if not np.isfinite(o).all():
-        raise InvalidParameterError(f"observation must be finite, got {obs!r}")
+        raise InvalidParameterError(f"observation must be finite, got {_short(obs)}")
     out: dict[str, float] = {}
     for i, n in enumerate(OBS_NAMES):
         transform, scale, _ = OBS_SPEC[n]
@@ -204,6 +280,9 @@ class Traces(Mapping[str, np.ndarray]):
     """
 
     def __init__(self, traces: Mapping[str, np.ndarray]) -> None:
+        if not isinstance(traces, Mapping):
+            raise InvalidParameterError(
+                f"traces must be a mapping of name -> array, got {_short(traces)}")
         self._data = {k: np.asarray(v) for k, v in traces.items()}
 
     def __getitem__(self, key: str) -> np.ndarray:

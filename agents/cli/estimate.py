@@ -32,6 +32,8 @@ from agents.cli.common import (
     writable,
     write_json,
 )
+from fetch_env.clipping import message as clip_message
+from fetch_env.clipping import record as clip_record
 from fetch_env.probes import nominal_stiffness
 from fetch_env.study_probes import (
     RELAXATION_DEFAULTS,
@@ -70,6 +72,7 @@ class ProbeEstimate:
     reliable: bool = True
     warnings: list[str] = field(default_factory=list)
     details: dict[str, Any] = field(default_factory=dict)
+    clipped: list[dict[str, Any]] = field(default_factory=list)  # fetch_env.clipping records
 
     def errors(self) -> dict[str, float]:
         """Relative error (estimate / true - 1) per name, NaN where undefined."""
@@ -116,6 +119,7 @@ class ProbeEstimate:
             "reliable": self.reliable,
             "warnings": self.warnings,
             "details": self.details,
+            "clipped": self.clipped,
         }
 
 
@@ -230,14 +234,54 @@ def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any
     return out
 
 
+def probe_clips(args: argparse.Namespace, pieces: tuple[Any, ...], probes: str,
+                actions: dict[str, Any]) -> list[dict[str, Any]]:
+    """What the probes change of the given values (``fetch_env.clipping``): the modulus
+    capped at each probe's physics step, and a ``--theta-d`` beyond the end stop."""
+    from fetch_env.controller import CLOSED_MARGIN, FetchSimulator
+    from fetch_env.probes import PROBE_PRESETS
+    from fetch_env.scene import BASE_TIMESTEP, young_caps
+
+    config = PROBE_PRESETS["measure"]
+    steps = ({"relaxation": config.relaxation_timestep or BASE_TIMESTEP,
+              "slip": config.slip_timestep} if probes == "measure"
+             else {"relaxation": BASE_TIMESTEP, "slip": BASE_TIMESTEP})
+    out: list[dict[str, Any]] = []
+    for probe in ("relaxation", "slip"):
+        if args.probe in ("both", probe):
+            out += young_caps(pieces, steps[probe], where=f" in the {probe} probe")
+    for probe, action in actions.items():
+        closed = FetchSimulator(pieces).scene_for(probe).pose.theta_closed
+        if args.theta_d is not None and action.theta_d > closed - CLOSED_MARGIN:
+            out.append(clip_record(
+                "end_stop", f"theta_d ({probe} probe)", action.theta_d, closed - CLOSED_MARGIN,
+                f"the controller's end stop, {CLOSED_MARGIN:g} rad before the half-spoons' "
+                f"tips meet at {closed:.4f} rad"))
+    return out
+
+
 def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
+    from fetch_env.clipping import reported_elsewhere
     from fetch_env.layouts import Piece
 
     _check(args)
     material = make_material(args)
     pieces = (Piece(args.shape, args.size, material),)
-    if which_probes(args) == "measure":
-        return run_measure(args, pieces, material)
+    probes = which_probes(args)
+    with reported_elsewhere():  # in the text and the JSON's "clipped" instead
+        if probes == "measure":
+            out = run_measure(args, pieces, material)
+            out.clipped = probe_clips(args, pieces, probes, {})
+            return out
+        out, actions = _run_study(args, pieces, material)
+    out.clipped = probe_clips(args, pieces, probes, actions)
+    return out
+
+
+def _run_study(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any
+               ) -> tuple[ProbeEstimate, dict[str, Any]]:
+    """The study's fixed-clamp probes (``--probes study``), held to the elastic twin; and
+    the ``FetchAction`` each probe ran."""
     actions = probe_actions(args, pieces)  # every input is valid past here
     true = {k: math.nan for k in NAMES}
     true.update(g1=material.g1, tau1=material.tau1, mu=material.mu)
@@ -253,7 +297,7 @@ def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
         _study_relaxation(args, pieces, actions["relaxation"], out)
     if "slip" in actions:
         _study_slip(args, pieces, actions["slip"], out)
-    return out
+    return out, actions
 
 
 def _record_probe(out: ProbeEstimate, name: str, run: dict[str, Any]) -> Any:
@@ -338,6 +382,8 @@ def print_report(r: ProbeEstimate) -> None:
         )
     for w in r.warnings:
         print(f"warning: {w}")
+    for rec in r.clipped:
+        print(f"simulated {clip_message(rec)}")
 
 
 def cmd_estimate(args: argparse.Namespace) -> int:
@@ -382,8 +428,11 @@ def _clamp_help(p: argparse.ArgumentParser) -> None:
 
 def add_options(p: argparse.ArgumentParser) -> None:
     """The options of ``food-fetch estimate``."""
+    from agents.cli.simulate import help_caps
+
     add_food_options(p)
     _clamp_help(p)
+    help_caps(p)
     p.add_argument(
         "--probes",
         choices=("measure", "study"),

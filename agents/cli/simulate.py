@@ -36,16 +36,41 @@ def _build(args: argparse.Namespace) -> tuple[Any, Any]:
     return pieces, action
 
 
+def clip_records(pieces: tuple[Any, ...], result: Any) -> list[dict[str, Any]]:
+    """What the run changed of the given values (``fetch_env.clipping``): moduli above the
+    conditioning limit simulated at it, and theta_d stopped at the controller's end stop."""
+    from fetch_env.scene import young_caps
+    from fetch_env.spaces import end_stop_records
+
+    return [*young_caps(pieces, result.timestep),
+            *end_stop_records(result.action.theta_d, result.extra,
+                              result.geometry["theta_closed"])]
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from fetch_env.controller import CLOSED_MARGIN, FetchSimulator
-    from fetch_env.scene import BLADE_HALF_THICKNESS
+    from fetch_env.clipping import reported_elsewhere
+    from fetch_env.controller import FetchSimulator
 
     pieces, action = _build(args)
-    result = FetchSimulator(pieces).run(args.experiment, action)
+    with reported_elsewhere():  # below, in the text and the JSON's "clipped"
+        result = FetchSimulator(pieces).run(args.experiment, action)
+    clipped = clip_records(pieces, result)
     out = result.to_dict(traces=True)
     out["seed"] = args.seed
+    out["clipped"] = clipped
     if args.json is not None:
         write_json(args.json, out)
+    _print_result(args, pieces, action, result, clipped)
+    return 0
+
+
+def _print_result(args: argparse.Namespace, pieces: tuple[Any, ...], action: Any,
+                  result: Any, clipped: list[dict[str, Any]]) -> None:
+    """The text report: experiment, food (and the modulus simulated where it was capped),
+    geometry, action (and where the clamp stopped short), per-piece outcomes, speed."""
+    from fetch_env.controller import CLOSED_MARGIN
+    from fetch_env.scene import BLADE_HALF_THICKNESS
+
     tr = result.traces
     ml, mr = tr["moment_left"], tr["moment_right"]
     print(
@@ -56,6 +81,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         f"food              {pieces[0].shape} {pieces[0].size * 1000:g} mm, "
         f"E_0 {args.young:g} Pa, g1 {args.g1:g}, tau1 {args.tau1:g} s, mu {args.mu:g}"
     )
+    for rec in clipped:
+        if rec["rule"] == "young":
+            print(f"                  E_0 capped: {rec['applied']:.3g} Pa simulated, not "
+                  f"{rec['given']:g} Pa ({rec['reason']})")
     print(
         f"geometry          L {result.geometry['L'] * 1000:.2f} mm, theta_0 "
         f"{result.geometry['theta_0']:.4f} rad (faces vertical at the open pose), theta_closed "
@@ -95,7 +124,6 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     )
     if args.json is not None:
         print(f"wrote             {args.json}")
-    return 0
 
 
 def add_options(p: argparse.ArgumentParser) -> None:
@@ -107,6 +135,7 @@ def add_options(p: argparse.ArgumentParser) -> None:
         help="which experiment (default: fetch)",
     )
     add_food_options(p)
+    help_caps(p)
     p.add_argument(
         "--json",
         type=writable,
@@ -114,3 +143,17 @@ def add_options(p: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="write the full result, traces included, as JSON",
     )
+
+
+def help_caps(p: argparse.ArgumentParser) -> None:
+    """State in --help the values the simulator caps (``fetch_env.clipping``): the
+    modulus and the clamp angle (simulate's and estimate's food and clamp options)."""
+    from fetch_env.controller import CLOSED_MARGIN
+
+    young = p._option_string_actions["--young"]
+    young.help = (f"{young.help}; above MuJoCo's conditioning limit 1e4 rho s^2 / dt^2 "
+                  "(9e7 Pa for a 15 mm, 1000 kg/m^3 cube at the 5 ms step) it is simulated at "
+                  "the limit, said in the output and the JSON's \"clipped\"")
+    theta = p._option_string_actions["--theta-d"]
+    theta.help = (f"{theta.help}; the controller's end stop, {CLOSED_MARGIN:g} rad before the "
+                  "half-spoons' tips meet, stops a larger one there (said in the output)")
