@@ -26,6 +26,11 @@ The model (SI units throughout; numbers in :class:`ModelBasedConfig`):
   would approach the motor's stall moment; the lift runs at a speed that ends it at
   ``t_s`` (between ``lift_speed_min`` and ``lift_speed_max``), so the food is in the air
   when the grip has settled on the relaxed force the grip rule was designed for.
+* **Time cost** (the -v1 ids' ``time_weight``, read from the env at ``begin_episode``, or
+  ``ModelBasedConfig.time_weight``): the grip rule already uses the relaxed force K1, the
+  least the food pushes back with, so waiting for it to settle buys no grip.  When time
+  costs, the agent clamps at ``omega_fast`` (still slowed near the motor's stall) and lifts
+  at ``lift_speed_fast``, with the lift's acceleration in the grip rule.
 
 Fallbacks: when the viscoelastic estimate is invalid (flag 0) K1, K2, B come from a cautious
 prior (the softest food-like modulus, 0.05 MPa, and the largest g1); an invalid mu is taken
@@ -68,6 +73,9 @@ class ModelBasedConfig:
     prior_g1: float = 0.6  # largest g1 (fallback: most relaxation)
     prior_tau1: float = 3.0  # [s]
     prior_mu: float = 0.15  # lowest mu (fallback)
+    time_weight: float | None = None  # [1/s] the reward's time cost; None: the env's
+    omega_fast: float = 0.4  # [rad/s] clamp speed when time costs (the action's fastest)
+    lift_speed_fast: float = 0.04  # [m/s] lift speed when time costs (the action's fastest)
 
 
 class ModelBasedAgent(Agent):
@@ -81,6 +89,12 @@ class ModelBasedAgent(Agent):
         self.config = config or ModelBasedConfig()
         self.geometry = geometry or Geometry()
         self.last_plan: dict[str, Any] = {}
+        self.time_weight = self.config.time_weight or 0.0
+
+    def begin_episode(self, env: Any) -> None:
+        """Read the reward's time cost from the env unless the config fixes it."""
+        if self.config.time_weight is None:
+            self.time_weight = float(getattr(env.unwrapped, "time_weight", 0.0))
 
     # ----------------------------------------------------------------- the model
     def plan(self, obs: np.ndarray) -> dict[str, Any]:
@@ -105,11 +119,14 @@ class ModelBasedAgent(Agent):
         tau1 = b / k2 if k2 > 0 else c.prior_tau1
         g1 = k2 / (k1 + k2) if (k1 + k2) > 0 else c.prior_g1
 
-        # Lift speed: finish the lift at the settling time t_s (see module docstring).
+        # Lift speed: finish the lift at the settling time t_s, or at once when time costs
+        # (see module docstring).
         ratio = g1 / max((1.0 - g1) * c.settling_tolerance, 1e-9)
         t_s = tau1 * math.log(max(ratio, 1.0))
         t_lift = max(t_s - c.hold, 1e-3)
         lift_speed = float(np.clip(c.lift_height / t_lift, c.lift_speed_min, c.lift_speed_max))
+        if self.time_weight > 0:
+            lift_speed = c.lift_speed_fast
         a_lift = lift_speed / c.lift_ramp
 
         # Grip: 2 mu K1 dx >= SF m (g + a)  ->  the smallest squeeze per face.
@@ -123,16 +140,21 @@ class ModelBasedAgent(Agent):
             limited = "grip needs more squeeze than the safe strain"
             eps = max(min(eps_grip, eps_cap), eps_safe)
         dx = eps * w / 2.0
+        # A fast clamp that would stall squeezes less if that still grips (one piece only: in
+        # a mix the probed piece's stiffness says little about the others').
+        if self.time_weight > 0 and d["n_pieces"] == 1:
+            dx_stall = self._stall_squeeze((geo.gap + dx) / L, L, k1, k2, tau1)
+            if dx_grip <= dx_stall < dx:
+                dx, eps = dx_stall, 2.0 * dx_stall / w
+                limited = "squeeze lowered to keep the fast clamp under the motor's stall"
         theta = (geo.gap + dx) / L
         lo, hi = ACTION_RANGES["theta_d"]
         theta = float(np.clip(theta, lo, hi))
 
         # Clamp speed: keep the instantaneous moment L dx (K1 + K2 phi) below the stall.
-        omega = c.omega
+        omega = c.omega_fast if self.time_weight > 0 else c.omega
         for _ in range(8):
-            T = theta / omega
-            phi = tau1 / T * (1.0 - math.exp(-T / tau1)) if T > 0 else 1.0
-            m_peak = L * dx * (k1 + k2 * phi)
+            m_peak = L * dx * (k1 + k2 * _maxwell_share(theta / omega, tau1))
             if m_peak <= c.stall_margin * c.stall_moment or omega <= c.omega_min:
                 break
             omega = max(omega / 2.0, c.omega_min)
@@ -149,9 +171,24 @@ class ModelBasedAgent(Agent):
             "limited": limited}
         return self.last_plan
 
+    def _stall_squeeze(self, theta: float, L: float, k1: float, k2: float,
+                       tau1: float) -> float:
+        """The squeeze per face [m] whose peak moment at ``omega_fast`` is the stall limit."""
+        c = self.config
+        phi = _maxwell_share(theta / c.omega_fast, tau1)
+        return c.stall_margin * c.stall_moment / (L * (k1 + k2 * phi))
+
     def act(self, obs: np.ndarray) -> np.ndarray:
         p = self.plan(obs)
         return physical_to_action(p["theta_d"], p["omega"], p["lift_speed"])
 
     def describe(self) -> dict[str, Any]:
         return {"name": self.name, **asdict(self.config)}
+
+
+def _maxwell_share(duration: float, tau1: float) -> float:
+    """The Maxwell arm's share of its force left after a ramp of ``duration`` [s]:
+    ``phi = tau1 / T (1 - exp(-T / tau1))`` (1 for an instant clamp)."""
+    if duration <= 0:
+        return 1.0
+    return tau1 / duration * (1.0 - math.exp(-duration / tau1))

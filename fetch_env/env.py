@@ -24,6 +24,8 @@ from fetch_env.env_scenes import (
     LAYOUTS,
     SAMPLING,
     SCENE_PRESETS,
+    SCENE_SPACES,
+    WIDE_SAMPLING,
     layout_features,
     preset_scene,
     sample_scene,
@@ -41,6 +43,7 @@ from fetch_env.probes import (
     true_parameters,
 )
 from fetch_env.render import EpisodeRenderer
+from fetch_env.rewards import DAMAGE_MODES, damage_excess, fetch_duration
 from fetch_env.scene import Geometry
 from fetch_env.spaces import (
     ACTION_NAMES,
@@ -80,6 +83,11 @@ __all__ = [
 ]
 
 ESTIMATORS: tuple[str, ...] = ("model", "oracle", "none")
+# The reward and scene arguments that differ between versions (the ids' defaults).
+VERSION_DEFAULTS: dict[str, dict[str, Any]] = {
+    "v0": {"time_weight": 0.0, "damage": "worst", "scenes": "study"},
+    "v1": {"time_weight": 0.1, "damage": "per_piece", "scenes": "wide"},
+}
 RESET_OPTIONS: tuple[str, ...] = ("preset", "pieces")
 _CACHE_SIZE = 8  # compiled scenes (and probe outcomes) kept per env, least recently used out
 
@@ -152,11 +160,16 @@ _COMMON_DOC = """
 
     - ``reward_fetch = fetch_weight * fetch_rate`` (share of pieces lifted and held; by mass
       with ``fetch_by_mass=True``); 0 when the simulation diverged.
-    - ``reward_deformation = -deformation_weight * min(1, max(0, LE_max - safe_log_strain))``,
-      LE_max the largest logarithmic strain of any piece during the clamp, hold and lift (the
-      study calls LE < 0.34 no large deformation); the whole ``-deformation_weight`` when a
-      piece passed through a blade or the plate (``info["passed_through"]``).
-    - ``reward_time = -time_weight * (theta_d / omega + hold + lift_height / lift_speed)`` [s].
+    - ``reward_deformation = -deformation_weight * D``, with each piece's excess strain
+      ``e_i = min(1, max(0, LE_i - safe_log_strain))`` (LE_i its largest logarithmic strain
+      during the clamp, hold and lift; the study calls LE < 0.34 no large deformation;
+      ``e_i = 1`` when it passed through a blade or the plate, ``info["passed_through"]``).
+      ``damage="worst"``: ``D = max_i e_i`` (one crushed piece costs the whole scene);
+      ``damage="per_piece"``: ``D = sum_i s_i e_i``, ``s_i`` the piece's share of the scene
+      (by count, or by mass with ``fetch_by_mass=True``), so damage is charged per piece as
+      fetches are counted (``fetch_env.rewards``). This id: ``damage="{damage}"``.
+    - ``reward_time = -time_weight * (theta_d / omega + hold + lift_height / lift_speed)`` [s]:
+      the time a person waits for the bite. This id: ``time_weight={time_weight}``.
 
     ## Starting state
     At reset the scene is drawn with the env's seeded generator (``reset(seed=...)``) from the
@@ -195,7 +208,9 @@ _COMMON_DOC = """
     | fetch_weight | 1.0 | weight of the fetch rate |
     | deformation_weight | 5.0 | penalty per unit of LE above safe_log_strain |
     | safe_log_strain | 0.34 | LE below which there is no penalty |
-    | time_weight | 0.0 | cost per second of clamp, hold and lift |
+    | time_weight | {time_weight} | cost per second of clamp, hold and lift |
+    | damage | "{damage}" | "worst" (worst piece) or "per_piece" (share-weighted sum) |
+    | scenes | "{scenes}" | scene space drawn at reset: "study" or "wide" (see Description) |
     | fetch_by_mass | False | reward the fetched mass share instead of the count share |
     | hold | 0.5 | hold at theta_d before lifting [s] |
     | lift_at_settling | False | hold until the estimated moment settling time t_s instead |
@@ -233,6 +248,13 @@ _COMMON_DOC = """
     ``docs/validation/step-size.md``).
 
     ## Version history
+    - v1 (0.2.0): rewards and scenes that measure what a feeding robot must do, so that no
+      fixed action is near the best on every scene: a time cost (``time_weight=0.1`` per
+      second: a person waits for the bite), damage charged per piece by its share of the
+      scene (``damage="per_piece"``: one crushed die no longer costs a whole plate), and the
+      wide scene space (``scenes="wide"``: the estimators' food space, 8-25 mm, 0.0123-5 MPa,
+      mu 0.1-0.8; slippery, very soft, stiff, small and large pieces).  Physics, probes,
+      actions and observations are those of v0.
     - v0 (0.2.0): the model's estimates are calibrated (``probe_calibrated``; False gives the
       0.1.0 estimates but for mu, now the slip ratio's 0.99 quantile where its plateau is
       lower, was 0.95); ``info["probe_calibration"]``.
@@ -255,13 +277,19 @@ def _obs_table() -> str:
         for i, n in enumerate(OBS_NAMES))
 
 
-def _docstring(title: str, description: str, layout: str) -> str:
-    ranges = "\n".join(f"    - {k}: {v}" for k, v in SAMPLING[layout].items())
+def _docstring(title: str, description: str, layout: str, version: str = "v0") -> str:
+    """An id's docstring: its description and scene ranges, then the common reference with
+    the version's defaults (``VERSION_DEFAULTS``) and its version history."""
+    defaults = VERSION_DEFAULTS[version]
+    sampling = WIDE_SAMPLING if defaults["scenes"] == "wide" else SAMPLING
+    ranges = "\n".join(f"    - {k}: {v}" for k, v in sampling[layout].items())
     body = _COMMON_DOC.format(
         **ACTION_RANGES, bound=OBS_BOUND, n_obs=len(OBS_NAMES), obs_table=_obs_table(),
-        presets=", ".join(SCENE_PRESETS), layout=layout, layouts=", ".join(LAYOUTS))
+        presets=", ".join(SCENE_PRESETS), layout=layout, layouts=", ".join(LAYOUTS),
+        **defaults)
+    space = f'``scenes="{defaults["scenes"]}"``'
     return (f"{title}\n\n    ## Description\n    {description}\n\n"
-            f"    Scene sampled at reset (``fetch_env.env_scenes``):\n{ranges}\n{body}")
+            f"    Scene sampled at reset (``fetch_env.env_scenes``, {space}):\n{ranges}\n{body}")
 
 
 def _check_reward_options(fetch_weight: float, deformation_weight: float, time_weight: float,
@@ -332,6 +360,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         deformation_weight: float = 5.0,
         safe_log_strain: float = 0.34,
         time_weight: float = 0.0,
+        damage: str = "worst",
+        scenes: str = "study",
         fetch_by_mass: bool = False,
         hold: float = 0.5,
         lift_at_settling: bool = False,
@@ -356,6 +386,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
     ) -> None:
         require(layout in LAYOUTS, "layout", layout, f"one of {LAYOUTS}")
         require(estimator in ESTIMATORS, "estimator", estimator, f"one of {ESTIMATORS}")
+        require(damage in DAMAGE_MODES, "damage", damage, f"one of {DAMAGE_MODES}")
+        require(scenes in SCENE_SPACES, "scenes", scenes, f"one of {SCENE_SPACES}")
         _check_reward_options(fetch_weight, deformation_weight, time_weight, safe_log_strain,
                               settling_tolerance, max_hold)
         _check_render_options(self.metadata["render_modes"], render_mode, width, height, camera)
@@ -371,6 +403,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         self.deformation_weight = float(deformation_weight)
         self.safe_log_strain = float(safe_log_strain)
         self.time_weight = float(time_weight)
+        self.damage = damage
+        self.scenes = scenes
         self.fetch_by_mass = bool(fetch_by_mass)
         self.hold = float(hold)
         self.lift_at_settling = bool(lift_at_settling)
@@ -453,7 +487,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         elif "preset" in options:
             pieces = preset_scene(options["preset"])
         else:
-            pieces = sample_scene(self.layout, self.np_random)
+            pieces = sample_scene(self.layout, self.np_random, self.scenes)
         self._sim_for(pieces).scene_for("fetch")  # compile now: bad pieces fail at reset
         self.pieces = pieces
         obs, info = self._observe(pieces)
@@ -596,7 +630,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         fa = FetchAction(theta_d=theta_d, omega=phys["omega"], lift_speed=phys["lift_speed"],
                          hold=self._episode_hold, lift_height=self.lift_height,
                          air_hold=self.air_hold, settle=self.settle)
-        duration = fa.theta_d / fa.omega + fa.hold + fa.lift_height / fa.lift_speed
+        duration = fetch_duration(fa.theta_d, fa.omega, fa.hold, fa.lift_height, fa.lift_speed)
         reward_time = -self.time_weight * duration
         info: dict[str, Any] = dict(self._reset_info_copy())
         info["action_applied"] = {"theta_d": fa.theta_d, "omega": fa.omega,
@@ -616,12 +650,9 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
                  for p in result.pieces)
         share = result.fetch_rate_mass if self.fetch_by_mass else result.fetch_rate
         reward_fetch = self.fetch_weight * float(share)
-        # Capped at 1 unit of LE: beyond that the piece is crushed (or the contact failed) and
-        # a larger number would only add variance to the return.  A piece that passed through
-        # a blade or the plate was cut or crushed past what the simulator models (its LE is
-        # no measurement, and it is never counted fetched): the whole penalty.
         passed = any(p["passed_through"] for p in result.pieces)
-        excess = 1.0 if passed else min(max(0.0, le - self.safe_log_strain), 1.0)
+        excess = damage_excess(result.pieces, self.safe_log_strain, self.damage,
+                               self.fetch_by_mass)
         reward_def = -self.deformation_weight * excess
         info.update(reward_fetch=reward_fetch, reward_deformation=reward_def,
                     reward_time=reward_time, fetch_rate=float(result.fetch_rate),
@@ -651,12 +682,17 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
             time.sleep(1.0 / self.metadata["render_fps"])
 
 
-def _with_layout(default: str) -> Callable[..., None]:
+def _with_defaults(default: str, version: str = "v0") -> Callable[..., None]:
     """An ``__init__`` for a registered id's class: :class:`FoodFetchEnv`'s with ``layout``
-    defaulting to the id's scene family (every other argument passed through)."""
+    defaulting to the id's scene family and the reward and scene arguments to its version's
+    (``VERSION_DEFAULTS``); every other argument passed through."""
+    d = VERSION_DEFAULTS[version]
 
-    def __init__(self: FoodFetchEnv, layout: str = default, **kwargs: Any) -> None:
-        FoodFetchEnv.__init__(self, layout=layout, **kwargs)
+    def __init__(self: FoodFetchEnv, layout: str = default,
+                 time_weight: float = d["time_weight"], damage: str = d["damage"],
+                 scenes: str = d["scenes"], **kwargs: Any) -> None:
+        FoodFetchEnv.__init__(self, layout=layout, time_weight=time_weight, damage=damage,
+                              scenes=scenes, **kwargs)
 
     return __init__
 
@@ -669,7 +705,7 @@ class FoodFetchBlockEnv(FoodFetchEnv):
         "on the project's 2-core VM, docs/benchmarks.md).",
         "block")
 
-    __init__ = _with_layout("block")
+    __init__ = _with_defaults("block")
 
 
 class FoodFetchRowEnv(FoodFetchEnv):
@@ -678,7 +714,7 @@ class FoodFetchRowEnv(FoodFetchEnv):
         "Two or three cubes side by side across the clamp direction, at one of the study's "
         "spacings (1, 0.5, 0.3, 0.1 mm); the study found tighter rows fetched better.", "row")
 
-    __init__ = _with_layout("row")
+    __init__ = _with_defaults("row")
 
 
 class FoodFetchTwoRowsEnv(FoodFetchEnv):
@@ -687,7 +723,7 @@ class FoodFetchTwoRowsEnv(FoodFetchEnv):
         "Two rows of cubes, 1 mm apart along the clamp and 0.01 mm across, all 200 MPa "
         "(hard) or all 0.2 MPa (soft): the study's soft-against-hard comparison.", "two_rows")
 
-    __init__ = _with_layout("two_rows")
+    __init__ = _with_defaults("two_rows")
 
 
 class FoodFetchDicedEnv(FoodFetchEnv):
@@ -697,6 +733,6 @@ class FoodFetchDicedEnv(FoodFetchEnv):
         "levels (200, 40, 5, 0.15, 0.0123 MPa) packed on a jittered grid; hard pieces tend to "
         "escape the clamp.", "diced")
 
-    __init__ = _with_layout("diced")
+    __init__ = _with_defaults("diced")
 
 

@@ -7,12 +7,14 @@ tests and the agents read the same numbers.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 
+from fetch_env import food_space
 from fetch_env.errors import InvalidParameterError
 from fetch_env.layouts import SHAPES, Piece, diced_mix, grid, single_block, single_row, two_rows
 from fetch_env.materials import PRESETS, STUDY_LEVELS, Material
@@ -55,6 +57,30 @@ SAMPLING: dict[str, dict[str, Any]] = {
               "shape": SHAPES},
 }
 
+# The "wide" scene space of the -v1 ids: the food space the estimators are validated on
+# (fetch_env.food_space: 8-25 mm, 0.0123-5 MPa, g1 0.1-0.8, tau1 0.5-10 s, mu 0.1-0.8), so
+# that slippery, very soft, stiff, small and large pieces all occur and no single fixed
+# action is near the best on every scene (the study's scenes vary only the layout).
+SCENE_SPACES: tuple[str, ...] = ("study", "wide")
+WIDE_ROW_SIZE_RANGE = (0.008, 0.014)  # [m] three 14 mm cubes still fit the 48 mm blades
+WIDE_TWO_ROWS_SIZE_RANGE = (0.008, 0.012)  # [m]
+WIDE_DICED_SIZE_RANGE = (0.007, 0.012)  # [m]
+
+WIDE_SAMPLING: dict[str, dict[str, Any]] = {
+    "block": {"shape": SHAPES, "size_m": food_space.SIZE_RANGE,
+              "young_pa": food_space.YOUNG_RANGE, "poisson": POISSON_RANGE,
+              "density": DENSITY_RANGE, "g1": food_space.G1_RANGE,
+              "tau1_s": food_space.TAU1_RANGE, "mu": food_space.MU_RANGE},
+    "row": {"n": ROW_N_RANGE, "size_m": WIDE_ROW_SIZE_RANGE,
+            "spacing_across_m": ROW_SPACINGS, "material": "as block"},
+    "two_rows": {"n_per_row": TWO_ROWS_N_RANGE, "size_m": WIDE_TWO_ROWS_SIZE_RANGE,
+                 "spacing_along_m": TWO_ROWS_SPACING_ALONG,
+                 "spacing_across_m": TWO_ROWS_SPACING_ACROSS,
+                 "young_pa": STUDY_LEVELS, "g1, tau1_s, mu": "as block"},
+    "diced": {"n": DICED_N_RANGE, "size_m": WIDE_DICED_SIZE_RANGE, "material": STUDY_LEVELS,
+              "shape": SHAPES, "mu": "one per scene, as block"},
+}
+
 
 def _log_uniform(rng: np.random.Generator, lo: float, hi: float) -> float:
     return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
@@ -70,8 +96,51 @@ def sample_material(rng: np.random.Generator) -> Material:
                     mu=float(rng.uniform(*MU_RANGE)), plate_mu=PLATE_MU, name="sampled")
 
 
-def sample_scene(layout: str, rng: np.random.Generator) -> tuple[Piece, ...]:
-    """Draw a scene of ``layout`` from the documented ranges, using only ``rng``."""
+def sample_wide_material(rng: np.random.Generator, young: float | None = None) -> Material:
+    """One food material of the wide scene space (``young`` fixed if given)."""
+    return Material(
+        young=_log_uniform(rng, *food_space.YOUNG_RANGE) if young is None else young,
+        poisson=float(rng.uniform(*POISSON_RANGE)), density=float(rng.uniform(*DENSITY_RANGE)),
+        g1=float(rng.uniform(*food_space.G1_RANGE)), tau1=_log_uniform(rng, *food_space.TAU1_RANGE),
+        mu=float(rng.uniform(*food_space.MU_RANGE)), plate_mu=PLATE_MU, name="sampled")
+
+
+def sample_wide_scene(layout: str, rng: np.random.Generator) -> tuple[Piece, ...]:
+    """Draw a scene of ``layout`` from the wide space (:data:`WIDE_SAMPLING`) with ``rng``."""
+    if layout == "block":
+        shape = str(rng.choice(SHAPES))
+        size = float(rng.uniform(*food_space.SIZE_RANGE))
+        return (Piece(shape, size, sample_wide_material(rng)),)  # type: ignore[arg-type]
+    if layout == "row":
+        n = int(rng.integers(ROW_N_RANGE[0], ROW_N_RANGE[1] + 1))
+        size = float(rng.uniform(*WIDE_ROW_SIZE_RANGE))
+        spacing = float(rng.choice(ROW_SPACINGS))
+        return single_row(spacing_across=spacing, n=n, size=size,
+                          material=sample_wide_material(rng))
+    if layout == "two_rows":
+        n = int(rng.integers(TWO_ROWS_N_RANGE[0], TWO_ROWS_N_RANGE[1] + 1))
+        size = float(rng.uniform(*WIDE_TWO_ROWS_SIZE_RANGE))
+        young = PRESETS[str(rng.choice(STUDY_LEVELS))].young
+        return two_rows(material=sample_wide_material(rng, young), n=n, size=size,
+                        spacing_along=TWO_ROWS_SPACING_ALONG,
+                        spacing_across=TWO_ROWS_SPACING_ACROSS)
+    if layout == "diced":
+        n = int(rng.integers(DICED_N_RANGE[0], DICED_N_RANGE[1] + 1))
+        pieces = diced_mix(rng, n_pieces=n, size_range=WIDE_DICED_SIZE_RANGE)
+        mu = float(rng.uniform(*food_space.MU_RANGE))
+        return tuple(dataclasses.replace(p, material=dataclasses.replace(p.material, mu=mu))
+                     for p in pieces)
+    raise InvalidParameterError(f"layout must be one of {LAYOUTS}, got {layout!r}")
+
+
+def sample_scene(layout: str, rng: np.random.Generator,
+                 scenes: str = "study") -> tuple[Piece, ...]:
+    """Draw a scene of ``layout`` from the documented ranges of ``scenes`` (the -v0 ids'
+    "study" space or the -v1 ids' "wide" one), using only ``rng``."""
+    if scenes == "wide":
+        return sample_wide_scene(layout, rng)
+    if scenes != "study":
+        raise InvalidParameterError(f"scenes must be one of {SCENE_SPACES}, got {scenes!r}")
     if layout == "block":
         shape = str(rng.choice(SHAPES))
         size = float(rng.uniform(*BLOCK_SIZE_RANGE))

@@ -9,6 +9,7 @@ the probes and the model estimator are exercised in their own tests.
 
 from __future__ import annotations
 
+import ast
 import inspect
 import math
 import pickle
@@ -57,8 +58,8 @@ CHEAP_PROBES = {"probe_hold": 0.3}
 GENTLE = physical_to_action(0.05, 0.1, 0.01)
 # check_env steps with random actions (slow clamps of up to 12 s); the multi-row layouts then
 # take 30-40 s each, so they run with the slow tests.
-CHECKED_FAST = [pytest.param(i, marks=pytest.mark.slow) if i in ("FoodFetch-Row-v0",
-                "FoodFetch-TwoRows-v0") else i for i in IDS]
+CHECKED_FAST = [pytest.param(i, marks=pytest.mark.slow) if i.split("-")[1] in ("Row", "TwoRows")
+                else i for i in IDS]
 
 
 def make(env_id: str = "FoodFetch-Block-v0", **kw) -> gym.Env:
@@ -101,20 +102,21 @@ def _doc_arguments(doc: str) -> dict[str, str]:
     return {name: default.strip() for name, default in rows if name != "argument"}
 
 
-@pytest.mark.parametrize("cls_name", ["FoodFetchEnv", "FoodFetchBlockEnv", "FoodFetchRowEnv",
-                                      "FoodFetchTwoRowsEnv", "FoodFetchDicedEnv"])
+@pytest.mark.parametrize("cls_name", ["FoodFetchEnv", *(e.split(":")[1]
+                                                      for e in fetch_env.ENV_IDS.values())])
 def test_documented_defaults_match_the_code(cls_name: str) -> None:
     import fetch_env.env as env_module
+    import fetch_env.env_v1 as env_v1_module
 
-    cls = getattr(env_module, cls_name)
+    cls = getattr(env_module, cls_name, None) or getattr(env_v1_module, cls_name)
     documented = _doc_arguments(cls.__doc__)
     params = inspect.signature(FoodFetchEnv.__init__).parameters
+    own = inspect.signature(cls.__init__).parameters  # an id's class sets its version's
     assert set(documented) == set(params) - {"self"}
     for name, text in documented.items():
-        default = params[name].default
-        if name == "layout":  # each subclass documents its own layout
-            default = inspect.signature(cls.__init__).parameters["layout"].default
-        assert eval(text) == default, f"{cls_name}.{name}: doc {text} != code {default!r}"
+        default = own[name].default if name in own else params[name].default
+        assert ast.literal_eval(text) == default, (
+            f"{cls_name}.{name}: doc {text} != code {default!r}")
     # The action table and the observation table are the code's numbers.
     for name, (lo, hi) in ACTION_RANGES.items():
         assert f"| {name} | {lo} | {hi} |" in cls.__doc__

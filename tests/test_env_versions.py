@@ -1,0 +1,171 @@
+"""The -v0 and -v1 ids: -v0 unchanged, -v1's reward terms and scene space as documented.
+
+``tests/data/v0_reference.json`` holds what every -v0 id gave on fixed seeds (default
+kwargs, the model estimator, one seeded random action) before the -v1 ids existed; the
+-v0 ids must keep giving exactly those numbers.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import fetch_env
+from fetch_env import food_space
+from fetch_env.env import VERSION_DEFAULTS, physical_to_action
+from fetch_env.env_scenes import (
+    WIDE_DICED_SIZE_RANGE,
+    WIDE_ROW_SIZE_RANGE,
+    WIDE_TWO_ROWS_SIZE_RANGE,
+    sample_scene,
+)
+from fetch_env.errors import InvalidParameterError
+from fetch_env.layouts import Piece
+from fetch_env.materials import PRESETS, STUDY_LEVELS, Material
+from fetch_env.rewards import damage_excess, fetch_duration, piece_excess
+
+REFERENCE = json.loads((Path(__file__).parent / "data" / "v0_reference.json").read_text())
+V1_IDS = [i for i in fetch_env.ENV_IDS if i.endswith("-v1")]
+CHEAP = {"estimator": "oracle", "hold": 0.1, "air_hold": 0.2, "settle": 0.05}
+
+
+@pytest.mark.parametrize("env_id", sorted(REFERENCE))
+def test_v0_ids_give_the_numbers_they_gave_before_v1(env_id: str) -> None:
+    env = gym.make(env_id)
+    for row in REFERENCE[env_id]:
+        obs, _ = env.reset(seed=row["seed"])
+        np.testing.assert_array_equal(obs, np.array(row["obs"], np.float32))
+        _, reward, _, _, info = env.step(np.array(row["action"], np.float32))
+        assert reward == row["reward"]
+        assert info["fetch_rate"] == row["fetch_rate"]
+        assert info["max_log_strain"] == row["max_log_strain"]
+    env.close()
+
+
+def test_every_v0_id_has_a_v1_id_with_the_version_defaults() -> None:
+    v0 = sorted(i.removesuffix("-v0") for i in fetch_env.ENV_IDS if i.endswith("-v0"))
+    assert sorted(i.removesuffix("-v1") for i in V1_IDS) == v0
+    for env_id in V1_IDS:
+        env = gym.make(env_id, estimator="none")
+        u = env.unwrapped
+        assert (u.time_weight, u.damage, u.scenes) == tuple(VERSION_DEFAULTS["v1"].values())
+        assert type(u).__doc__.startswith(env_id)
+        env.close()
+
+
+# ------------------------------------------------------------------ reward terms
+
+
+def _piece(le: float, mass: float = 1.0, passed: bool = False) -> dict:
+    return {"max_log_strain_clamp": le, "max_log_strain_lift": le / 2, "mass": mass,
+            "passed_through": passed}
+
+
+def test_damage_is_the_worst_piece_or_the_share_weighted_sum() -> None:
+    safe = 0.34
+    pieces = [_piece(0.84), _piece(0.1), _piece(0.2), _piece(2.0)]
+    excess = [0.5, 0.0, 0.0, 1.0]  # 0.84 - 0.34; below safe; below; capped at 1
+    assert [piece_excess(p, safe) for p in pieces] == pytest.approx(excess, abs=1e-12)
+    assert damage_excess(pieces, safe, "worst") == pytest.approx(1.0)
+    assert damage_excess(pieces, safe, "per_piece") == pytest.approx(1.5 / 4)
+    masses = [1.0, 2.0, 3.0, 4.0]
+    by_mass = [_piece(p["max_log_strain_clamp"], m) for p, m in zip(pieces, masses, strict=True)]
+    assert damage_excess(by_mass, safe, "per_piece", by_mass=True) == pytest.approx(
+        (0.5 * 1 + 1.0 * 4) / 10)
+    # A piece that passed through a blade takes the whole unit, whatever its strain.
+    assert piece_excess(_piece(0.0, passed=True), safe) == 1.0
+    assert fetch_duration(0.05, 0.1, 0.5, 0.005, 0.005) == pytest.approx(0.5 + 0.5 + 1.0)
+
+
+def test_v1_reward_is_its_terms_with_the_time_cost_of_the_action() -> None:
+    env = gym.make("FoodFetch-Block-v1", **CHEAP)
+    env.reset(seed=3)
+    _, reward, _, _, info = env.step(physical_to_action(0.05, 0.2, 0.01))
+    applied = info["action_applied"]
+    duration = applied["theta_d"] / applied["omega"] + applied["hold"] + 0.005 / 0.01
+    assert info["reward_time"] == pytest.approx(-0.1 * duration, rel=1e-6)  # float32 action
+    assert reward == pytest.approx(info["reward_fetch"] + info["reward_deformation"]
+                                   + info["reward_time"], abs=1e-12)
+    env.close()
+
+
+def test_v1_and_v0_simulate_the_same_fetch_and_differ_only_in_the_reward() -> None:
+    pieces = tuple(Piece("cube", 0.009, PRESETS[m], x=x) for m, x in
+                   (("soft-0.15MPa", -0.005), ("very-soft-0.0123MPa", 0.005)))
+    action = physical_to_action(0.07, 0.1, 0.005)
+    out = {}
+    for version in ("v0", "v1"):
+        env = gym.make(f"FoodFetch-Diced-{version}", **CHEAP)
+        env.reset(seed=0, options={"pieces": pieces})
+        out[version] = env.step(action)[4]
+        env.close()
+    v0, v1 = out["v0"], out["v1"]
+    assert v0["fetch_rate"] == v1["fetch_rate"]
+    assert v0["max_log_strain"] == v1["max_log_strain"]
+    excess = [piece_excess(p, 0.34) for p in v1["pieces"]]
+    assert v0["reward_deformation"] == pytest.approx(-5 * max(excess))
+    assert v1["reward_deformation"] == pytest.approx(-5 * sum(excess) / 2)
+    assert v0["reward_time"] == 0.0 and v1["reward_time"] < 0
+
+
+def test_bad_damage_or_scenes_is_refused_naming_the_value() -> None:
+    with pytest.raises(InvalidParameterError, match="damage"):
+        gym.make("FoodFetch-Block-v1", damage="mean")
+    with pytest.raises(InvalidParameterError, match="scenes"):
+        gym.make("FoodFetch-Block-v1", scenes="wider")
+
+
+# ------------------------------------------------------------------ the wide scene space
+
+
+def _draws(layout: str, n: int) -> list[tuple[Piece, ...]]:
+    rng = np.random.default_rng(0)
+    return [sample_scene(layout, rng, "wide") for _ in range(n)]
+
+
+def _covers(values: list[float], lo: float, hi: float, log: bool = False) -> None:
+    """Every value inside [lo, hi] and the draws reach both ends' tenths of the range."""
+    f = math.log if log else float
+    span = f(hi) - f(lo)
+    assert min(values) >= lo * (1 - 1e-12) and max(values) <= hi * (1 + 1e-12)
+    assert f(min(values)) - f(lo) < 0.1 * span and f(hi) - f(max(values)) < 0.1 * span
+
+
+def test_wide_block_scenes_span_the_food_space() -> None:
+    scenes = _draws("block", 300)
+    pieces = [s[0] for s in scenes]
+    assert {p.shape for p in pieces} == {"cube", "ellipsoid", "sphere"}
+    _covers([p.size for p in pieces], *food_space.SIZE_RANGE)
+    _covers([p.material.young for p in pieces], *food_space.YOUNG_RANGE, log=True)
+    _covers([p.material.g1 for p in pieces], *food_space.G1_RANGE)
+    _covers([p.material.tau1 for p in pieces], *food_space.TAU1_RANGE, log=True)
+    _covers([p.material.mu for p in pieces], *food_space.MU_RANGE)
+
+
+@pytest.mark.parametrize(("layout", "size_range"), [("row", WIDE_ROW_SIZE_RANGE),
+                                                    ("two_rows", WIDE_TWO_ROWS_SIZE_RANGE),
+                                                    ("diced", WIDE_DICED_SIZE_RANGE)])
+def test_wide_multi_piece_scenes_vary_friction_and_stay_in_their_ranges(
+        layout: str, size_range: tuple[float, float]) -> None:
+    scenes = _draws(layout, 120)
+    sizes = [p.size for s in scenes for p in s]
+    assert min(sizes) >= size_range[0] - 1e-12 and max(sizes) <= size_range[1] + 1e-12
+    mus = [s[0].material.mu for s in scenes]
+    _covers(mus, *food_space.MU_RANGE)
+    for s in scenes:  # one friction coefficient per scene
+        assert len({p.material.mu for p in s}) == 1
+    if layout != "row":
+        levels = {PRESETS[n].young for n in STUDY_LEVELS}
+        assert {p.material.young for s in scenes for p in s} == levels
+
+
+def test_wide_scenes_come_from_the_seed_alone() -> None:
+    a = sample_scene("diced", np.random.default_rng(5), "wide")
+    b = sample_scene("diced", np.random.default_rng(5), "wide")
+    assert a == b
+    assert isinstance(a[0].material, Material)
