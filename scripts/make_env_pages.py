@@ -108,12 +108,20 @@ def index_page(classes: dict[str, type]) -> str:
             NOTE.replace("the class docstring", "the class docstrings"),
             "",
             "`import fetch_env` registers these ids with Gymnasium "
-            '(`gymnasium.make("fetch_env:FoodFetch-Block-v0")` works without the import). '
+            '(`gymnasium.make("fetch_env:FoodFetch-Block-v1")` works without the import). '
             "One episode is one fetch: the agent chooses the clamp angle, the clamping speed "
             "and the lift speed once, the simulator clamps, holds, lifts and holds the food in "
             "the air, and the reward is the share of pieces fetched less a penalty on large "
-            "deformation. Every id shares the action and observation spaces and the keyword "
-            "arguments; they differ in the scenes drawn at reset.",
+            "deformation (and, from -v1, on time). Every id shares the physics, the action and "
+            "observation spaces and the keyword arguments; they differ in the scenes drawn at "
+            "reset and, by version, in the reward's defaults.",
+            "",
+            "**Which version.** The -v1 ids are the benchmark: foods from the whole food space "
+            "(8-25 mm, very soft to firm, slippery to grippy), damage charged piece by piece, "
+            "and a cost per second of the fetch, so that no fixed action is near the best on "
+            "every scene. The -v0 ids are the study's scenes with the study's reward (the "
+            "study's fixed action is near the best there); they stay available unchanged, so "
+            "results published on them can be reproduced.",
             "",
             "| id | scene |",
             "|---|---|",
