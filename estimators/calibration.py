@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares, minimize
 
-from estimators.errors import EstimationError
+from estimators.errors import EstimationError, instance, mapping
 
 __all__ = ["ERROR_INPUTS", "FEATURES", "TARGETS", "Calibration", "ErrorModel", "error_inputs",
            "features", "fit_calibration", "fit_error_model"]
@@ -65,16 +65,53 @@ def features(shape: str, size: float, estimate: Mapping[str, float]) -> np.ndarr
     Raises:
         EstimationError: an unknown shape, a size or estimate that is not finite and positive.
     """
-    if shape not in SHAPES:
+    if not isinstance(shape, str) or shape not in SHAPES:
         raise EstimationError(f"shape must be one of {SHAPES}, got {shape!r}")
-    values = {k: estimate.get(k, math.nan) for k in ("K1", "K2", "mu", "g1", "tau1")}
+    values = {k: mapping("estimate", estimate).get(k, math.nan)
+              for k in ("K1", "K2", "mu", "g1", "tau1")}
     for name, v in (("size", size), *values.items()):
-        if not (isinstance(v, int | float | np.floating) and math.isfinite(v) and v > 0):
+        if not (isinstance(v, int | float | np.floating | np.integer)
+                and not isinstance(v, bool | np.bool_) and math.isfinite(v) and v > 0):
             raise EstimationError(f"calibration needs a finite, positive {name}, got {v!r}")
     k_el = values["K1"] + values["K2"]
     return np.array([1.0, shape == "cube", shape == "sphere", math.log(size / _SIZE_REF),
                      math.log(k_el / size / _STIFFNESS_REF), values["mu"], values["g1"],
                      math.log(values["tau1"])], dtype=float)
+
+
+def _records(name: str, rows: object, n: int) -> list[Sequence[object]]:
+    """``rows`` as a list of ``n``-item records, or the error naming the first bad one."""
+    if isinstance(rows, str | bytes | Mapping) or not isinstance(rows, Sequence | np.ndarray):
+        raise EstimationError(f"{name} must be a sequence of {n}-item records, got {rows!r:.60}")
+    for i, row in enumerate(rows):
+        if isinstance(row, str | bytes) or not isinstance(row, Sequence) or len(row) != n:
+            raise EstimationError(f"{name}[{i}] must be a record of {n} items, got {row!r:.60}")
+    return list(rows)
+
+
+def _positive_real(name: str, value: object, allow_zero: bool = False) -> None:
+    """Refuse ``value`` unless it is a finite real number > 0 (>= 0 with ``allow_zero``)."""
+    v = _number(value)
+    if not (math.isfinite(v) and (v >= 0 if allow_zero else v > 0)):
+        raise EstimationError(f"{name} must be a finite number {'>=' if allow_zero else '>'} "
+                              f"0, got {value!r:.60}")
+
+
+def _number(value: object) -> float:
+    """A diagnostic as a float: NaN (missing) unless it is a real number."""
+    if isinstance(value, bool | np.bool_) or not isinstance(
+            value, int | float | np.integer | np.floating):
+        return math.nan
+    return float(value)
+
+
+def _finite_numbers(values: object, n: int) -> bool:
+    """Whether ``values`` is a sequence (or array) of ``n`` finite real numbers."""
+    if isinstance(values, str | bytes) or not isinstance(values, Sequence | np.ndarray):
+        return False
+    return len(values) == n and all(
+        isinstance(v, int | float | np.integer | np.floating)
+        and not isinstance(v, bool | np.bool_) and math.isfinite(v) for v in values)
 
 
 @dataclass(frozen=True)
@@ -93,9 +130,11 @@ class Calibration:
     error_model: ErrorModel | None = None
 
     def __post_init__(self) -> None:
+        mapping("calibration coefficients", self.coefficients)
+        instance("error_model", self.error_model, ErrorModel | None, "an ErrorModel or None")
         for target in TARGETS:
             b = self.coefficients.get(target)
-            if b is None or len(b) != len(FEATURES) or not all(math.isfinite(v) for v in b):
+            if not _finite_numbers(b, len(FEATURES)):
                 raise EstimationError(
                     f"calibration coefficients for {target!r} must be {len(FEATURES)} finite "
                     f"numbers (for {FEATURES}), got {b!r}")
@@ -158,16 +197,22 @@ def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mappi
     Raises:
         EstimationError: fewer usable foods than twice the number of features.
     """
+    _positive_real("f_scale", f_scale)
     rows, ys = [], {t: [] for t in TARGETS}
-    for shape, size, est, true in foods:
+    for i, (shape, size, est, true) in enumerate(_records("foods", foods, 4)):
         try:
             x = features(shape, size, est)
         except EstimationError:
             continue
+        truth = mapping(f"foods[{i}] truth", true)
+        if not all(_number(truth.get(k)) > 0 and math.isfinite(_number(truth.get(k)))
+                   for k in ("K1", "K2", "g1", "tau1")):
+            raise EstimationError(f"foods[{i}] truth must give finite, positive K1, K2, g1, "
+                                  f"tau1, got {truth!r}")
         rows.append(x)
-        ys["K_el"].append(math.log((est["K1"] + est["K2"]) / (true["K1"] + true["K2"])))
-        ys["g1"].append(math.log(est["g1"] / true["g1"]))
-        ys["tau1"].append(math.log(est["tau1"] / true["tau1"]))
+        ys["K_el"].append(math.log((est["K1"] + est["K2"]) / (truth["K1"] + truth["K2"])))
+        ys["g1"].append(math.log(est["g1"] / truth["g1"]))
+        ys["tau1"].append(math.log(est["tau1"] / truth["tau1"]))
     if len(rows) < 2 * len(FEATURES):
         raise EstimationError(f"calibration needs at least {2 * len(FEATURES)} foods with "
                               f"complete estimates, got {len(rows)}")
@@ -204,6 +249,10 @@ def error_inputs(target: str, shape: str, size: float, estimate: Mapping[str, fl
     Raises:
         EstimationError: as :func:`features`, or a diagnostic that is missing or NaN.
     """
+    if not isinstance(target, str) or target not in ERROR_INPUTS:
+        raise EstimationError(f"error model target must be one of {tuple(ERROR_INPUTS)}, "
+                              f"got {target!r}")
+    mapping("diagnostics", diagnostics)
     x = dict(zip(FEATURES, features(shape, size, estimate), strict=True))
     out = []
     for name in ERROR_INPUTS[target]:
@@ -213,9 +262,9 @@ def error_inputs(target: str, shape: str, size: float, estimate: Mapping[str, fl
         take_log = name not in diagnostics and name.startswith("log_")
         key = name.removeprefix("log_") if take_log else name
         if key == "1-r2_clamp":
-            v = 1.0 - float(diagnostics.get("r2_clamp", math.nan))
+            v = 1.0 - _number(diagnostics.get("r2_clamp", math.nan))
         else:
-            v = float(diagnostics.get(key, math.nan))
+            v = _number(diagnostics.get(key, math.nan))
         if math.isnan(v):
             raise EstimationError(f"error model: diagnostic {key!r} is missing or NaN")
         out.append(math.log(min(max(v, 1e-3), 1e3)) if take_log else min(max(v, -1e3), 1e3))
@@ -242,14 +291,16 @@ class ErrorModel:
     source: str = ""
 
     def __post_init__(self) -> None:
+        for name in ("centre", "spread", "coefficients", "multiplier"):
+            mapping(f"error model {name}", getattr(self, name))
         for t, names in ERROR_INPUTS.items():
             n = len(names)
-            ok = (len(self.centre.get(t, ())) == n and len(self.spread.get(t, ())) == n
-                  and len(self.coefficients.get(t, ())) == n + 1
-                  and all(math.isfinite(v) for v in (*self.centre[t], *self.coefficients[t]))
-                  and all(math.isfinite(v) and v > 0 for v in self.spread[t])
-                  and math.isfinite(self.multiplier.get(t, math.nan))
-                  and self.multiplier[t] > 0)
+            mult = self.multiplier.get(t)
+            ok = (_finite_numbers(self.centre.get(t), n)
+                  and _finite_numbers(self.spread.get(t), n)
+                  and _finite_numbers(self.coefficients.get(t), n + 1)
+                  and all(v > 0 for v in self.spread[t])
+                  and _finite_numbers([mult], 1) and mult > 0)
             if not ok:
                 raise EstimationError(f"error model for {t!r} must have {n} finite centres, "
                                       f"{n} positive spreads, {n + 1} coefficients and a "
@@ -316,6 +367,11 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0, coverage: floa
     Raises:
         EstimationError: fewer usable foods for a target than three times its inputs.
     """
+    _positive_real("ridge", ridge, allow_zero=True)
+    _positive_real("coverage", coverage)
+    if coverage > 1:
+        raise EstimationError(f"coverage must be in (0, 1], got {coverage!r}")
+    rows = _records("rows", rows, 5)
     parts: dict[str, dict[str, object]] = {k: {} for k in
                                            ("centre", "spread", "coefficients", "multiplier")}
     n_used = 0
@@ -338,8 +394,8 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0, coverage: floa
 
 def _error_rows(rows: Sequence[ErrorRow], target: str) -> tuple[np.ndarray, np.ndarray]:
     X, r = [], []
-    for shape, size, est, diag, resid in rows:
-        res = float(resid.get(target, math.nan))
+    for i, (shape, size, est, diag, resid) in enumerate(rows):
+        res = _number(mapping(f"rows[{i}] residual", resid).get(target, math.nan))
         if not math.isfinite(res):
             continue
         try:

@@ -6,10 +6,13 @@ warning that says why, or raises :class:`EstimationError` with a message naming 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["EstimationError", "as_trace", "check_traces", "optional_real", "real"]
+__all__ = ["EstimationError", "as_trace", "check_traces", "floats", "instance", "mapping",
+           "optional_real", "real"]
 
 
 class EstimationError(ValueError):
@@ -26,6 +29,38 @@ def real(name: str, value: object) -> float:
         shown = shown if len(shown) <= 60 else shown[:57] + "..."
         raise EstimationError(f"{name} must be a real number, got {shown}")
     return float(value)
+
+
+def _shown(value: object, limit: int = 60) -> str:
+    shown = repr(value)
+    return shown if len(shown) <= limit else shown[:limit - 3] + "..."
+
+
+def instance(name: str, value: object, kind: type | tuple[type, ...], what: str) -> None:
+    """Refuse ``value`` unless it is a ``kind`` (e.g. a ``ClampGeometry``), naming it: an
+    object of another type would fail later with a bare ``AttributeError``."""
+    if not isinstance(value, kind):
+        raise EstimationError(f"{name} must be {what}, got {_shown(value)}")
+
+
+def mapping(name: str, value: object) -> Mapping[str, object]:
+    """``value`` if it is a mapping (e.g. ``{"K1": ..., "g1": ...}``), else the error."""
+    instance(name, value, Mapping, "a mapping of name -> value")
+    return value  # type: ignore[return-value]
+
+
+def floats(name: str, values: ArrayLike) -> NDArray[np.float64]:
+    """``values`` (a number or an array of any shape) as float64, if they are real numbers
+    (not text, complex, None or objects); NaN and infinities pass (the caller decides)."""
+    try:
+        raw = np.asarray(values)
+        ok = raw.dtype.kind in "biufO"
+        arr = raw.astype(np.float64) if ok else raw
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise EstimationError(f"{name} must be real numbers, got {_shown(values)}")
+    return arr
 
 
 def optional_real(name: str, value: object) -> float | None:

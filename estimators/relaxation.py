@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import OptimizeResult, brentq, curve_fit, least_squares
 from scipy.stats import t as student_t
 
-from estimators.errors import EstimationError, check_traces, optional_real, real
+from estimators.errors import EstimationError, check_traces, instance, optional_real, real
 from estimators.sls import (
     ClampGeometry,
     SLSParams,
@@ -184,8 +184,9 @@ def _r2(y: NDArray[np.float64], yhat: NDArray[np.float64]) -> float:
 
 
 def _validate(
-    t: ArrayLike, theta: ArrayLike, M: ArrayLike
+    t: ArrayLike, theta: ArrayLike, M: ArrayLike, geometry: object
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    instance("geometry", geometry, ClampGeometry, "a ClampGeometry (L, theta_0)")
     tt, tr = check_traces(t, min_samples=_MIN_SAMPLES, theta=theta, M=M)
     return tt, tr["theta"], tr["M"]
 
@@ -285,8 +286,9 @@ def detect_contact(
             only after the clamp has stopped, or a ``threshold`` that is not a real number.
     """
     threshold = optional_real("threshold", threshold)
-    tt = np.asarray(t, dtype=np.float64)
-    m = np.asarray(M, dtype=np.float64)
+    instance("kin", kin, ClampKinematics, "a ClampKinematics (infer_kinematics)")
+    tt, traces = check_traces(t, min_samples=3, M=M)
+    m = traces["M"]
     hold = tt > kin.t_d
     sigma = _robust_sd(m[hold]) if hold.sum() >= 3 else _robust_sd(m)
     clamp_and_hold = tt >= kin.t_start
@@ -374,8 +376,8 @@ def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float) -> HoldFit:
         EstimationError: fewer than 10 hold samples, or a ``t_d`` that is not a real number.
     """
     t_d = real("t_d", t_d)
-    tt = np.asarray(t, dtype=np.float64)
-    m = np.asarray(M, dtype=np.float64)
+    tt, traces = check_traces(t, min_samples=1, M=M)
+    m = traces["M"]
     hold = tt > t_d
     s, y = tt[hold] - t_d, m[hold]
     if s.size < _MIN_HOLD_SAMPLES:
@@ -504,7 +506,7 @@ def estimate_three_step(t: ArrayLike, theta: ArrayLike, M: ArrayLike, geometry: 
     Raises:
         EstimationError: bad traces, no hold, no contact.
     """
-    tt, th, m = _validate(t, theta, M)
+    tt, th, m = _validate(t, theta, M, geometry)
     kin, contact, hf = _clamp_phases(tt, th, m, omega, theta_d)
     return _three_step_from_parts(tt, m, geometry, kin, contact, hf)
 
@@ -578,6 +580,7 @@ def estimate_from_hold(t: ArrayLike, M: ArrayLike, geometry: ClampGeometry, thet
     theta_1, theta_d, omega, t_d, settle = (
         real(name, v) for name, v in (("theta_1", theta_1), ("theta_d", theta_d),
                                       ("omega", omega), ("t_d", t_d), ("settle", settle)))
+    instance("geometry", geometry, ClampGeometry, "a ClampGeometry (L, theta_0)")
     tt, traces = check_traces(t, M=M)
     m = traces["M"]
     for name, value in (("theta_d", theta_d), ("omega", omega)):
@@ -760,7 +763,7 @@ def estimate_full_fit(
     Raises:
         EstimationError: bad traces, no hold, no contact, a non-finite model or a solver failure.
     """
-    tt, th, m = _validate(t, theta, M)
+    tt, th, m = _validate(t, theta, M, geometry)
     _check_full_fit_options(fit_theta_1, clamp_weight)
     phases = _clamp_phases(tt, th, m, omega, theta_d)
     kin, contact, hf = phases

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_ivp
 
-from estimators.errors import EstimationError, real
+from estimators.errors import EstimationError, floats, instance, real
 
 __all__ = [
     "ClampGeometry",
@@ -150,12 +150,16 @@ def clamp_angle(
     t: ArrayLike, theta_d: float, omega: float, t_start: float = 0.0
 ) -> NDArray[np.float64]:
     """Hinge angle (rad) of a clamp at constant ``omega`` (rad/s) from 0 at ``t_start`` (s)."""
-    return np.clip(omega * (np.asarray(t, dtype=np.float64) - t_start), 0.0, theta_d)
+    theta_d, omega, t_start = (real(n, v) for n, v in (("theta_d", theta_d), ("omega", omega),
+                                                       ("t_start", t_start)))
+    return np.clip(omega * (floats("t", t) - t_start), 0.0, theta_d)
 
 
 def displacement(theta: ArrayLike, geometry: ClampGeometry, theta_1: float) -> NDArray[np.float64]:
     """Equivalent food compression ``x`` (m) of eq. 3; negative before first contact."""
-    th = np.asarray(theta, dtype=np.float64)
+    _check_geometry(geometry)
+    theta_1 = real("theta_1", theta_1)
+    th = floats("theta", theta)
     return geometry.L * (np.sin(geometry.theta_0 - theta_1) - np.sin(geometry.theta_0 - th))
 
 
@@ -170,8 +174,9 @@ def eq4_coefficients(
 
     ``a`` in 1/m, ``b`` in 1/(m s), ``rhs = c theta' + (K1 K2 / B) x`` in N/s.
     """
-    th = np.asarray(theta, dtype=np.float64)
-    thd = np.asarray(theta_dot, dtype=np.float64)
+    instance("params", params, SLSParams, "an SLSParams")
+    _check_geometry(geometry)
+    th, thd = floats("theta", theta), floats("theta_dot", theta_dot)
     k1, k2, bb = params.K1, params.K2, params.B
     L = geometry.L
     phi = geometry.theta_0 - th
@@ -192,6 +197,7 @@ def steady_moment(
     ``params`` may be an :class:`SLSParams` or just ``K1`` (N/m).
     """
     k1 = params.K1 if isinstance(params, SLSParams) else real("K1", params)
+    _check_geometry(geometry)
     for name, value in (("theta_1", theta_1), ("theta_d", theta_d)):
         if not np.isfinite(real(name, value)):
             raise EstimationError(f"{name} must be finite, got {value!r}")
@@ -201,7 +207,12 @@ def steady_moment(
     return k1 * L**2 * (np.sin(th0 - theta_1) - np.sin(th0 - theta_d)) / np.cos(th0 - theta_d)
 
 
+def _check_geometry(geometry: object) -> None:
+    instance("geometry", geometry, ClampGeometry, "a ClampGeometry (L, theta_0)")
+
+
 def _check_clamp(geometry: ClampGeometry, theta_1: float, theta_d: float, omega: float) -> None:
+    _check_geometry(geometry)
     for name, value in (("omega", omega), ("theta_d", theta_d), ("theta_1", theta_1)):
         real(name, value)
     if not (np.isfinite(omega) and omega > 0.0):
@@ -256,7 +267,8 @@ def moment_components(
         which makes both the fits and the step-3 root find cheap.
     """
     _check_clamp(geometry, theta_1, theta_d, omega)
-    tt = np.asarray(t, dtype=np.float64)
+    lam, t_start = real("lam", lam), real("t_start", t_start)
+    tt = floats("t", t)
     S = np.zeros_like(tt)
     V = np.zeros_like(tt)
     if theta_1 < 0.0:
@@ -408,11 +420,12 @@ def moment_trace(
         rtol: relative tolerance (``"ivp"`` only).
     """
     _check_clamp(geometry, theta_1, theta_d, omega)
+    instance("params", params, SLSParams, "an SLSParams")
     if not np.isfinite(real("t_start", t_start)):
         raise EstimationError(f"t_start must be finite, got {t_start!r}")
     if isinstance(n_sub, bool) or not isinstance(n_sub, int | np.integer) or n_sub < 1:
         raise EstimationError(f"n_sub must be an integer >= 1, got {n_sub!r}")
-    tt = np.asarray(t, dtype=np.float64)
+    tt = floats("t", t)
     if theta_d <= theta_1:
         return np.zeros_like(tt)
     if theta_1 < 0.0:

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.errors import EstimationError
+from estimators.errors import EstimationError, optional_real
 from estimators.sls import ClampGeometry
 
 __all__ = [
@@ -176,6 +176,9 @@ def load_traces(
             :data:`MIN_SAMPLES` samples, one half-spoon's trace without the other's, no
             relaxation and no slip data, or clamp geometry neither given nor in the file.
     """
+    if not isinstance(path, str | os.PathLike) or isinstance(path, bytes):
+        raise EstimationError(f"path must be a file name (str or os.PathLike), got {path!r:.60}")
+    L, theta_0 = optional_real("L", L), optional_real("theta_0", theta_0)
     text = _read_text(path)
     if _is_json(path, text):
         table = _parse_json(path, text)

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
-from estimators.errors import EstimationError
+from estimators.errors import EstimationError, check_traces, instance, mapping, real
 from estimators.relaxation import (
     ClampKinematics,
     HoldEstimate,
@@ -72,7 +72,9 @@ class HoldWithIntervals:
 
 
 def log_interval(value: float, sd_log: float, z: float = Z95) -> tuple[float, float]:
-    """``value * exp(+-z sd_log)`` (a positive quantity's interval on the log scale)."""
+    """``value * exp(+-z sd_log)`` (a positive quantity's interval on the log scale); NaN
+    where ``value`` is not finite and positive or ``sd_log`` not finite."""
+    value, sd_log, z = real("value", value), real("sd_log", sd_log), real("z", z)
     if not (math.isfinite(value) and value > 0 and math.isfinite(sd_log)):
         return (math.nan, math.nan)
     return (value * math.exp(-z * sd_log), value * math.exp(z * sd_log))
@@ -100,6 +102,10 @@ def hold_diagnostics(est: HoldEstimate, t: np.ndarray, m: np.ndarray, t_start: f
       against the hold is extrapolated, a fast one leaves few samples);
     * ``log_relax``: log of the relaxing share ``|A| / (M_inf + |A|)`` of the held moment.
     """
+    instance("est", est, HoldEstimate, "a HoldEstimate (estimate_from_hold)")
+    t_start = real("t_start", t_start)
+    t, traces = check_traces(t, min_samples=1, m=m)
+    m = traces["m"]
     hf = est.fit
     sel = t > t_start
     s, y = t[sel] - t_start, m[sel]
@@ -178,10 +184,12 @@ def hold_with_intervals(
     Raises:
         EstimationError: as :func:`estimators.estimate_from_hold` on the full window.
     """
-    if not (math.isfinite(scale) and scale > 0):
+    if not (math.isfinite(real("scale", scale)) and scale > 0):
         raise EstimationError(f"scale must be finite and > 0, got {scale!r}")
-    tt = np.asarray(t, dtype=np.float64)
-    mm = np.asarray(M, dtype=np.float64)
+    if systematic is not None:
+        mapping("systematic", systematic)
+    tt, traces = check_traces(t, M=M)
+    mm = traces["M"]
     args = (geometry, theta_1, theta_d, omega, t_d)
     est = estimate_from_hold(tt, mm, *args, settle=settle)
     span = float(tt[-1]) - (t_d + settle)
@@ -202,7 +210,8 @@ def hold_with_intervals(
         model[k] = max(shifts) if shifts else (math.inf if len(alternates) < 1 else 0.0)
     floor = systematic or {}
     for k, v in floor.items():
-        if k not in _NAMES or not (math.isfinite(v) and v >= 0):
+        if k not in _NAMES or isinstance(v, bool) or not isinstance(v, int | float) or not (
+                math.isfinite(v) and v >= 0):
             raise EstimationError(f"systematic[{k!r}] must name one of {_NAMES} with a finite "
                                   f"sd >= 0, got {v!r}")
     intervals = {k: log_interval(getattr(est, k), math.hypot(

@@ -274,7 +274,7 @@ def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
             out.clipped = probe_clips(args, pieces, probes, {})
             return out
         out, actions = _run_study(args, pieces, material)
-    out.clipped = probe_clips(args, pieces, probes, actions)
+        out.clipped = probe_clips(args, pieces, probes, actions)
     return out
 
 
