@@ -9,7 +9,8 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable
+from concurrent.futures import Future
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -78,27 +79,22 @@ class _FakePool:
 
     sizes: ClassVar[list[int]] = []
 
-    def __init__(self, n: int, initializer: object = None) -> None:
+    def __init__(self, n: int, **_kwargs: object) -> None:
         self.sizes.append(n)
 
-    def imap_unordered(self, fn: Callable[[Any], Any], items: Iterable[Any],
-                       chunksize: int = 1) -> Iterator[Any]:
-        return map(fn, items)
+    def submit(self, fn: Callable[..., Any], *args: Any) -> Future:
+        fut: Future = Future()
+        fut.set_result(fn(*args))
+        return fut
 
-    def close(self) -> None: ...
-    def terminate(self) -> None: ...
-    def join(self) -> None: ...
-
-
-class _FakeContext:
-    Pool = _FakePool
+    def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None: ...
 
 
 def test_workers_are_capped_at_the_number_of_tasks(monkeypatch: pytest.MonkeyPatch) -> None:
-    import multiprocessing
+    import concurrent.futures
 
     _FakePool.sizes = []
-    monkeypatch.setattr(multiprocessing, "get_context", lambda _method: _FakeContext())
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", _FakePool)
     monkeypatch.setattr(ev, "run_episode", lambda t: {"episode": t.episode})
     tasks = [ev.Task("random", "FoodFetch-Block-v0", i, i) for i in range(3)]
     assert ev.run_tasks(tasks, workers=64) == [{"episode": i} for i in range(3)]
@@ -108,12 +104,12 @@ def test_workers_are_capped_at_the_number_of_tasks(monkeypatch: pytest.MonkeyPat
 def test_one_task_starts_no_pool(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                  capsys: pytest.CaptureFixture[str]) -> None:
     """``--workers 64 --episodes 1`` starts no pool of 64 processes for one episode (~3 min)."""
-    import multiprocessing
+    import concurrent.futures
 
-    def no_pool(_method: str) -> None:
+    def no_pool(*_a: object, **_k: object) -> None:
         raise AssertionError("a process pool for a single task")
 
-    monkeypatch.setattr(multiprocessing, "get_context", no_pool)
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", no_pool)
     js = tmp_path / "w.json"
     code, out, err = run_cli(["evaluate", "--agent", "study", "--episodes", "1", "--workers",
                               "64", "--json", str(js), "--quiet"], capsys)
@@ -135,11 +131,16 @@ def test_json_contract_and_table(tmp_path: Path, capsys: pytest.CaptureFixture[s
         for key in ("reward_mean", "reward_ci95", "fetch_rate_mean", "success_rate",
                     "max_log_strain_mean", "time_per_fetch_mean"):
             assert key in s
-        assert len(s["reward_ci95"]) == 2 and s["reward_ci95"][0] <= s["reward_mean"]
+        # 2 episodes: n too small for an interval, so the values instead
+        assert s["n_too_small"] and s["reward_ci95"] == [None, None]
+        assert len(s["reward_values"]) == 2
+        assert s["reward_mean"] == pytest.approx(sum(s["reward_values"]) / 2)
         assert "regret_mean" not in s  # search did not run
-    assert not d["interrupted"]
+    assert not d["interrupted"] and d["intervals"]["min_episodes"] == 5
     assert len(csv.read_text().strip().splitlines()) == 1 + 4
-    assert "model-based" in out and "reward" in out
+    assert "model-based" in out and "reward" in out and "n too small" in out
+    log = tmp_path / "e.episodes.jsonl"  # the episode log, beside --json by default
+    assert d["episodes_log"] == str(log) and len(log.read_text().splitlines()) == 1 + 4
 
 
 def test_env_kwargs_reach_every_episode(tmp_path: Path,

@@ -106,6 +106,10 @@ def writable(path: str) -> Path:
     p = Path(path)
     if not p.name or p.name in (".", "..") or p.is_dir():
         raise argparse.ArgumentTypeError(f"not a file name: {path!r}")
+    from agents.atomic import written_as_is
+
+    if p.exists() and written_as_is(p) and os.access(p, os.W_OK):
+        return p  # /dev/stdout, a FIFO: written as they are (agents.atomic), not replaced
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
         raise argparse.ArgumentTypeError(f"directory does not exist: {str(parent)!r}")
@@ -165,14 +169,14 @@ def make_material(args: argparse.Namespace) -> Any:
 
 
 def write_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (a temporary file, then ``os.replace``)."""
-    tmp = path.with_name(path.name + ".part")
+    """Write ``text`` to ``path`` atomically (:func:`agents.atomic.write_atomic`: a
+    temporary file beside it, then ``os.replace``), so a reader never sees half a file."""
+    from agents.atomic import write_atomic
+
     try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
+        write_atomic(path, text)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise UsageError(f"cannot write {str(path)!r}: {exc.strerror}") from None
+        raise UsageError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
 
 
 def write_json(path: Path, payload: dict[str, Any]) -> None:

@@ -4,21 +4,22 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import platform
 import sys
 import time
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from agents.cli.common import (
+    EXIT_USAGE,
     UsageError,
     out_dir,
     positive_int,
     require_extra,
     seed,
     writable,
-    write_json,
 )
 from fetch_env.errors import env_error_line
 
@@ -27,9 +28,17 @@ DESCRIPTION = ("Run each agent on the same seeded scenes (episode i uses "
                "reset(seed=SEED+i)) and print, per agent, the mean reward, fetch rate, success "
                "rate, mean and max logarithmic strain LE, time per fetch and regret against "
                "'search' (the per-scene optimum found with the simulator), each with its 95 % "
-               "interval. Agents: random, study, model-based, search, or the path of a model "
-               "saved by 'food-fetch train'. Ctrl-C stops and still writes what finished. "
-               "--dataset records the episodes as Minari datasets for offline RL.")
+               "interval (Student t for reward and regret, bootstrap for fetch rate, LE and "
+               "time, Wilson for success: never outside what the quantity can be; below 5 "
+               "episodes the values, 'n too small'). Agents: random, study, model-based, "
+               "search, or the path of a model saved by 'food-fetch train'. Each finished "
+               "episode is appended to an episode log (--episodes-log) that --resume "
+               "continues. Ctrl-C, SIGTERM and SIGHUP stop the run and still write what "
+               "finished (exit code 128 + the signal's number); a lost worker's tasks run "
+               "once more on a fresh pool; every file is written whole or not at all, and a "
+               "file that cannot be written at the end leaves the results in a fallback file "
+               "named on stderr (exit code 1). --dataset records the episodes as Minari "
+               "datasets for offline RL.")
 
 
 DEFAULT_AGENTS: tuple[str, ...] = ("random", "study", "model-based")
@@ -45,6 +54,16 @@ def _env_kwarg(text: str) -> tuple[str, Any]:
         return key, json.loads(raw)
     except json.JSONDecodeError:
         return key, raw
+
+
+def _existing_file(path: str) -> Path:
+    """``--resume``: a file that exists and can be read and appended to."""
+    p = Path(path)
+    if not p.is_file():
+        raise argparse.ArgumentTypeError(f"no such file: {path!r}")
+    if not os.access(p, os.R_OK | os.W_OK):
+        raise argparse.ArgumentTypeError(f"cannot read and append to {path!r}")
+    return p
 
 
 def _check_env_kwargs(env_id: str, pairs: list[tuple[str, Any]]) -> dict[str, Any]:
@@ -67,88 +86,262 @@ def _check_env_kwargs(env_id: str, pairs: list[tuple[str, Any]]) -> dict[str, An
     return kwargs
 
 
-def _json_safe(x: Any) -> Any:
-    """NaN/inf -> None, so the file is strict JSON (a diverged episode has no LE)."""
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {k: _json_safe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_json_safe(v) for v in x]
-    return x
+def _payload(args: argparse.Namespace, run: _Run, summary: dict[str, Any],
+             wall: float) -> dict[str, Any]:
+    """The JSON summary of the run (every episode's record with ``--json-episodes``)."""
+    from agents.evaluate import INTERVALS
 
-
-def _payload(args: argparse.Namespace, agents: list[str], records: list[dict[str, Any]],
-             summary: dict[str, Any], interrupted: bool, wall: float,
-             describe: dict[str, Any], env_kwargs: dict[str, Any]) -> dict[str, Any]:
     return {
-        "env": args.env, "env_kwargs": env_kwargs,
+        "env": args.env, "env_kwargs": run.env_kwargs,
         "episodes": args.episodes, "seed": args.seed,
         "workers": args.workers, "search_episodes": args.search_episodes,
-        "interrupted": interrupted, "episodes_finished": len(records),
-        "wall_time_s": round(wall, 2),
-        "agents": summary, "agent_settings": describe,
+        "interrupted": run.stopped is not None,
+        "stopped": run.stopped.reason if run.stopped is not None else None,
+        "episodes_finished": len(run.records), "wall_time_s": round(wall, 2),
+        "episodes_log": None if run.log_path is None else str(run.log_path),
+        "resumed_from": None if args.resume is None else str(args.resume),
+        "episodes_from_log": run.from_log,
+        "intervals": INTERVALS,
+        "agents": summary, "agent_settings": run.describe,
         "command": ["food-fetch", *sys.argv[1:]] if sys.argv[0].endswith("food-fetch")
         else ["food-fetch", "evaluate", *[a for a in sys.argv[1:]]],
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
                     "python": platform.python_version()},
-        "episodes_detail": records if args.json_episodes else None,
+        "episodes_detail": run.records if args.json_episodes else None,
     }
 
 
-def _checked_agents(args: argparse.Namespace) -> tuple[list[str], dict[str, Any]]:
-    """The agents to evaluate and their descriptions; a bad name, path or model file is one
-    usage line, before any episode runs."""
+@dataclass
+class _Run:
+    """One evaluation as the command runs it: the checked inputs, the planned tasks, the
+    episode log and, once run, the records in task order and why it stopped (if it did)."""
+
+    agents: list[str]
+    describe: dict[str, Any]
+    env_kwargs: dict[str, Any]
+    datasets: dict[str, str]
+    n_search: int
+    plan: list[Any] = field(default_factory=list)
+    header: dict[str, Any] = field(default_factory=dict)
+    log_path: Path | None = None
+    logged: list[dict[str, Any]] = field(default_factory=list)
+    records: list[dict[str, Any]] = field(default_factory=list)
+    stopped: Any = None  # agents.evaluate.EvaluationInterrupted
+    from_log: int = 0
+
+
+def _checked_agents(args: argparse.Namespace) -> tuple[list[str], dict[str, Any],
+                                                       dict[str, str]]:
+    """The agents to evaluate, their descriptions and each model file's SHA-256; a bad name,
+    path or model file is one usage line, before any episode runs."""
+    from agents.episode_log import file_digest
     from agents.evaluate import AgentSpecError, make_agent
 
     agents = list(dict.fromkeys(args.agent or DEFAULT_AGENTS))
-    describe = {}
+    describe, files = {}, {}
     for spec in agents:
         try:
             agent = make_agent(spec, args.env)
             if hasattr(agent, "model"):
                 agent.model  # noqa: B018 (load now: a corrupt file is a usage error)
+                files[spec] = file_digest(spec)
             describe[spec] = agent.describe()
         except AgentSpecError as exc:
             raise UsageError(f"food-fetch evaluate: {exc}") from None
         except Exception as exc:  # e.g. a model file SB3 cannot read
             raise UsageError(f"food-fetch evaluate: cannot use agent {spec!r}: {exc}") from None
-    return agents, describe
+    return agents, describe, files
 
 
-def _run_with_bar(args: argparse.Namespace, tasks: list[Any], n_agents: int
-                  ) -> tuple[list[Any], bool, float]:
-    """Run ``tasks`` under a progress bar: the records, whether Ctrl-C stopped it, wall time."""
+def _log_path(args: argparse.Namespace) -> Path | None:
+    """Where the episode log goes: ``--resume``'s file, ``--episodes-log``, else beside
+    ``--json`` (``x.json`` -> ``x.episodes.jsonl``), else beside ``--csv``, else nowhere."""
+    if args.resume is not None:
+        if args.episodes_log is not None and args.episodes_log != args.resume:
+            raise UsageError("food-fetch evaluate: --resume continues its own log; leave out "
+                             "--episodes-log")
+        if args.dataset is not None:
+            raise UsageError("food-fetch evaluate: --resume cannot record --dataset (the log "
+                             "holds no transitions): record a dataset in a run of its own")
+        return args.resume
+    if args.episodes_log is not None:
+        if args.episodes_log in (args.json, args.csv):
+            raise UsageError("food-fetch evaluate: --episodes-log must differ from --json and "
+                             "--csv")
+        return args.episodes_log
+    from agents.atomic import written_as_is
+
+    for out in (args.json, args.csv):
+        if out is not None and not written_as_is(out):  # not beside /dev/stdout
+            return out.with_name(out.stem + ".episodes.jsonl")
+    return None
+
+
+def _plan(args: argparse.Namespace, run: _Run, files: dict[str, str]) -> None:
+    """The planned tasks, the log's header, and with ``--resume`` the records the log
+    already holds (checked against the command first)."""
+    from agents.episode_log import LogError, check_matches, food_fetch_version, read_log
+    from agents.evaluate import REFERENCE, Task
+
+    run.plan = [Task(a, args.env, i, args.seed + i, run.env_kwargs, record=bool(run.datasets))
+                for i in range(args.episodes) for a in run.agents
+                if not (a == REFERENCE and i >= run.n_search)]
+    run.header = {"env": args.env, "env_kwargs": run.env_kwargs, "seed": args.seed,
+                  "agents": run.agents, "agent_settings": run.describe, "agent_files": files,
+                  "food_fetch_version": food_fetch_version(), "episodes": args.episodes,
+                  "search_episodes": args.search_episodes}
+    run.log_path = _log_path(args)
+    if args.resume is None:
+        return
+    try:
+        header, records = read_log(args.resume)
+        check_matches(args.resume, header, run.header)
+    except LogError as exc:
+        raise UsageError(f"food-fetch evaluate: --resume: {exc}") from None
+    planned = {(t.agent, t.episode) for t in run.plan}
+    run.logged = [r for r in records if (r["agent"], r["episode"]) in planned]
+    run.from_log = len(run.logged)
+
+
+def _open_log(args: argparse.Namespace, run: _Run) -> Any:
+    """The episode log to append to (None without one): ``--resume``'s file continued, else
+    a new one; a log that cannot be started is one usage line, before any episode runs."""
+    from agents.episode_log import EpisodeLog
+
+    if run.log_path is None:
+        return None
+    try:
+        if args.resume is not None:
+            return EpisodeLog.reopen(run.log_path)
+        return EpisodeLog.create(run.log_path, run.header)
+    except OSError as exc:
+        raise UsageError(f"food-fetch evaluate: cannot write the episode log "
+                         f"{str(run.log_path)!r}: {exc.strerror or exc}") from None
+
+
+def _run_with_bar(args: argparse.Namespace, run: _Run, tasks: list[Any], log: Any,
+                  stop: Any) -> float:
+    """Run ``tasks`` under a progress bar, appending each record to the log as it finishes;
+    the new records and why it stopped go into ``run``.  The wall time."""
     from tqdm import tqdm
 
     from agents.evaluate import EvaluationInterrupted, run_tasks
 
     bar = tqdm(total=len(tasks), unit="ep", disable=args.quiet or None, file=sys.stderr,
-               desc=f"{args.env} x {n_agents} agents")
+               desc=f"{args.env} x {len(run.agents)} agents")
+
+    def on_result(rec: dict[str, Any]) -> None:
+        if log is not None:
+            log.append(rec)
+        bar.update()
+
+    def notify(message: str) -> None:
+        bar.write(f"food-fetch evaluate: {message}", file=sys.stderr)
+
     wall = time.perf_counter()
-    interrupted = False
     try:
-        records = run_tasks(tasks, workers=args.workers, on_result=lambda _: bar.update())
+        new = run_tasks(tasks, workers=args.workers, on_result=on_result, stop=stop,
+                        notify=notify)
     except EvaluationInterrupted as exc:
-        records, interrupted = exc.results, True
+        new, run.stopped = exc.results, exc
     finally:
+        stop.armed = False  # from here a signal is remembered: the results get written
         bar.close()
-    return records, interrupted, time.perf_counter() - wall
+    if log is not None:
+        for rec in new:  # one a stop cut off between its finish and its log line
+            log.append(rec)
+        log.close()
+    order = {(t.agent, t.episode): i for i, t in enumerate(run.plan)}
+    run.records = sorted(run.logged + new, key=lambda r: order[(r["agent"], r["episode"])])
+    return time.perf_counter() - wall
 
 
-def _print_summary(args: argparse.Namespace, agents: list[str], summary: Any, n_search: int,
-                   wall: float, interrupted: bool) -> None:
-    """The run's one-line header and the agents' table."""
-    from agents.evaluate import REFERENCE, format_table
+def _print_summary(args: argparse.Namespace, run: _Run, summary: Any, wall: float) -> None:
+    """The run's one-line header, how to read the intervals, and the agents' table."""
+    from agents.evaluate import REFERENCE, TABLE_LEGEND, format_table
 
     print(f"{args.env}: {args.episodes} episodes from seed {args.seed}"
-          + (f" (search on the first {n_search})" if REFERENCE in agents
-             and n_search < args.episodes else "")
+          + (f" (search on the first {run.n_search})" if REFERENCE in run.agents
+             and run.n_search < args.episodes else "")
           + f", {args.workers} worker(s), {wall:.1f} s"
-          + ("  [INTERRUPTED: partial results]" if interrupted else ""))
-    print("mean ± half-width of the 95 % interval; regret = search reward - agent reward "
-          "on the same scenes")
+          + (f" ({run.from_log} episode(s) from {args.resume})" if args.resume else "")
+          + ("  [INTERRUPTED: partial results]" if run.stopped is not None else ""))
+    print(TABLE_LEGEND)
     print(format_table(summary, markdown=args.markdown))
+    sys.stdout.flush()  # before any file: --json /dev/stdout comes after the table
+
+
+class _Writes:
+    """The files written at the end of a run, and those that could not be (path, why)."""
+
+    def __init__(self) -> None:
+        self.failed: list[tuple[str, str]] = []
+        self.usage: list[str] = []  # one-line usage errors (no OpenGL for --video, ...)
+
+    def attempt(self, path: Path | str, write: Any) -> tuple[bool, Any]:
+        """Whether ``write()`` succeeded, and what it returned; an OSError (folder removed,
+        disk full) is remembered, not raised."""
+        try:
+            return True, write()
+        except OSError as exc:
+            self.failed.append((str(path), exc.strerror or str(exc)))
+            return False, None
+
+
+def _fallback(payload: dict[str, Any]) -> Path | None:
+    """The results (with every episode) in a new file in the current folder, else in the
+    system's temporary folder; its path, or None when neither can be written."""
+    import tempfile
+
+    from agents.atomic import write_atomic
+    from agents.episode_log import json_safe
+
+    name = f"food-fetch-evaluate-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.json"
+    text = json.dumps(json_safe(payload))
+    for folder in (".", tempfile.gettempdir()):
+        path = Path(os.path.abspath(os.path.join(folder, name)))
+        try:
+            write_atomic(path, text)
+            return path
+        except OSError:
+            continue
+    return None
+
+
+def _write_outputs(args: argparse.Namespace, run: _Run, summary: dict[str, Any],
+                   payload: dict[str, Any], stop: Any) -> _Writes:
+    """JSON, CSV, and (for a run that was not stopped) plots, datasets and videos; each
+    written atomically, each failure kept for one line at the end."""
+    from agents.atomic import write_atomic
+    from agents.datasets import pop_transitions
+    from agents.episode_log import json_safe
+    from agents.evaluate import write_csv, write_plots
+
+    writes, partial = _Writes(), " (partial)" if run.stopped is not None else ""
+    transitions = pop_transitions(run.records) if run.datasets else {}
+    outputs = [(args.json, lambda: write_atomic(args.json,
+                                                json.dumps(json_safe(payload)) + "\n")),
+               (args.csv, lambda: write_csv(args.csv, run.records))]
+    for path, write in outputs:
+        if path is not None and writes.attempt(path, write)[0]:
+            print(f"wrote{partial}".ljust(18) + str(path))
+    stopped = run.stopped is not None or stop.signum is not None
+    if args.plots is not None and not stopped:  # figures and videos can wait after a stop
+        for p in writes.attempt(args.plots, lambda: write_plots(
+                args.plots, summary, run.records, args.env))[1] or []:
+            print(f"plot              {p}")
+    try:
+        if run.datasets:
+            for line in writes.attempt(args.dataset, lambda: _write_datasets(
+                    args, run.datasets, run.records, transitions, run.env_kwargs,
+                    run.describe, run.stopped is not None))[1] or []:
+                print(line)
+        if args.video is not None and not stopped:
+            writes.attempt(args.video, lambda: _write_videos(args, run.agents,
+                                                             run.env_kwargs))
+    except UsageError as exc:  # said at the end, after the other outputs
+        writes.usage.append(str(exc))
+    return writes
 
 
 def _write_videos(args: argparse.Namespace, agents: list[str], env_kwargs: dict[str, Any]
@@ -159,6 +352,8 @@ def _write_videos(args: argparse.Namespace, agents: list[str], env_kwargs: dict[
     existed = args.video.exists()
     try:
         videos = record_videos(args.video, agents, args.env, args.seed, env_kwargs)
+    except OSError:
+        raise  # a write failed (reported with the others), not the rendering
     except Exception as exc:  # no OpenGL context (headless without MUJOCO_GL=egl)
         if not existed and args.video.is_dir() and not any(args.video.iterdir()):
             args.video.rmdir()  # leave no empty folder behind a failed call
@@ -194,6 +389,7 @@ def _write_datasets(args: argparse.Namespace, ids: dict[str, str], records: list
     import gymnasium as gym
 
     from agents.datasets import DatasetError, write_dataset
+    from agents.episode_log import json_safe
     from agents.evaluate import REFERENCE
 
     n_search = min(args.search_episodes or args.episodes, args.episodes)
@@ -207,7 +403,7 @@ def _write_datasets(args: argparse.Namespace, ids: dict[str, str], records: list
                         "complete": not interrupted}
             try:
                 n = write_dataset(ds_id, agent, env, records, transitions,
-                                  _json_safe(settings), overwrite=args.dataset_overwrite)
+                                  json_safe(settings), overwrite=args.dataset_overwrite)
             except DatasetError as exc:
                 raise UsageError(f"food-fetch evaluate: --dataset: {exc}") from None
             if n:
@@ -218,10 +414,55 @@ def _write_datasets(args: argparse.Namespace, ids: dict[str, str], records: list
     return lines
 
 
+def _kept(args: argparse.Namespace, run: _Run, writes: _Writes, log: Any) -> str:
+    """Where what finished is, for the line that says the run stopped."""
+    failed = {path for path, _ in writes.failed}
+    files = [str(p) for p in (args.json, args.csv) if p is not None and str(p) not in failed]
+    text = f"what finished is in {', '.join(files)}" if files else ""
+    if log is not None and str(log.path) not in failed:
+        text += (" and " if text else "what finished is in ") + (
+            f"the episode log {str(log.path)!r} (add --resume {log.path} to the command to "
+            "run the rest)")
+    return text or "the table above holds what finished"
+
+
+def _finish(args: argparse.Namespace, run: _Run, writes: _Writes, log: Any,
+            payload: dict[str, Any], stop: Any) -> int:
+    """The closing lines on stderr (each one line) and the exit code: 128 + the signal's
+    number after a stop, 1 after a lost worker or a failed write, else 0."""
+    import signal
+
+    problem = log.problem() if log is not None else None
+    if problem is not None:
+        writes.failed.append((str(log.path), problem))
+    code = 0
+    if writes.failed:
+        fallback = _fallback({**payload, "episodes_detail": run.records})
+        where = (f"the results with every episode are in {str(fallback)!r}" if fallback
+                 else "nor could the results be written to the current or the temporary "
+                 "folder: the table above is what is left")
+        failed = ", ".join(f"{path!r} ({why})" for path, why in writes.failed)
+        print(f"food-fetch evaluate: cannot write {failed}; {where}", file=sys.stderr)
+        code = 1
+    for line in writes.usage:
+        print(line, file=sys.stderr)
+    if writes.usage and not code:
+        code = EXIT_USAGE
+    if run.stopped is not None:
+        print(f"food-fetch evaluate: {run.stopped.reason} ({len(run.records)} of "
+              f"{len(run.plan)} episodes finished); {_kept(args, run, writes, log)}",
+              file=sys.stderr)
+        return int(run.stopped.code)
+    if stop.signum is not None:
+        print(f"food-fetch evaluate: {signal.Signals(stop.signum).name} came while the "
+              "results were written: they are, figures and videos left out", file=sys.stderr)
+        return 128 + stop.signum
+    return code
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     require_extra("evaluate", "figures")
-    from agents.datasets import pop_transitions  # (minari itself only with --dataset)
-    from agents.evaluate import REFERENCE, Task, summarize, write_csv, write_plots
+    from agents.evaluate import StopSignals, summarize
     from fetch_env import ENV_IDS  # (not agents.train.env_ids: that module needs PyYAML)
 
     ids = sorted(ENV_IDS)
@@ -230,41 +471,22 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
                          f"choose from {', '.join(ids)}")
     datasets = _checked_datasets(args)
     env_kwargs = _check_env_kwargs(args.env, args.env_kwargs)
-    agents, describe = _checked_agents(args)
-    n_search = min(args.search_episodes or args.episodes, args.episodes)
-    tasks = [Task(a, args.env, i, args.seed + i, env_kwargs, record=bool(datasets))
-             for i in range(args.episodes) for a in agents
-             if not (a == REFERENCE and i >= n_search)]
+    agents, describe, files = _checked_agents(args)
+    run = _Run(agents, describe, env_kwargs, datasets,
+               n_search=min(args.search_episodes or args.episodes, args.episodes))
+    _plan(args, run, files)
+    done = {(r["agent"], r["episode"]) for r in run.logged}
+    tasks = [t for t in run.plan if (t.agent, t.episode) not in done]
     # A worker beyond one per task only costs a process start (MuJoCo, numpy imports).
-    args.workers = min(args.workers, len(tasks))
-    records, interrupted, wall = _run_with_bar(args, tasks, len(agents))
-    transitions = pop_transitions(records) if datasets else {}
-    summary = summarize(records, agents)
-    payload = _payload(args, agents, records, summary, interrupted, wall, describe, env_kwargs)
-    if args.json is not None:
-        write_json(args.json, _json_safe(payload))
-    if args.csv is not None:
-        write_csv(args.csv, records)
-    _print_summary(args, agents, summary, n_search, wall, interrupted)
-    written = [path for path in (args.json, args.csv) if path is not None]
-    recorded = _write_datasets(args, datasets, records, transitions, env_kwargs, describe,
-                               interrupted) if datasets else []
-    if interrupted:
-        for path in written:
-            print(f"wrote (partial)   {path}")
-        for line in recorded:
-            print(line)
-        return 130
-    if args.plots is not None:
-        for p in write_plots(args.plots, summary, records, args.env):
-            print(f"plot              {p}")
-    for path in written:
-        print(f"wrote             {path}")
-    for line in recorded:
-        print(line)
-    if args.video is not None:
-        _write_videos(args, agents, env_kwargs)
-    return 0
+    args.workers = max(1, min(args.workers, len(tasks)))
+    with StopSignals() as stop:
+        log = _open_log(args, run)
+        wall = _run_with_bar(args, run, tasks, log, stop)
+        summary = summarize(run.records, agents)
+        payload = _payload(args, run, summary, wall)
+        _print_summary(args, run, summary, wall)  # first: a failed write still shows it
+        writes = _write_outputs(args, run, summary, payload, stop)
+        return _finish(args, run, writes, log, payload, stop)
 
 
 def add_options(p: argparse.ArgumentParser) -> None:
@@ -285,12 +507,22 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    help="seed of the first scene, 0 to 2**32-1 (default: 0)")
     p.add_argument("--workers", type=positive_int, default=1, metavar="K",
                    help="worker processes, at most one per (agent, episode) task (more are "
-                   "not started); any K gives the same numbers (default: 1)")
+                   "not started); any K gives the same numbers (default: 1); a worker that "
+                   "dies has its tasks rerun once on a fresh pool")
     p.add_argument("--search-episodes", type=positive_int, default=None, metavar="N",
                    help="run 'search' (~20 simulations per scene) on the first N scenes "
                    "only; regret is then paired on those (default: all)")
     p.add_argument("--json", type=writable, default=None, metavar="FILE",
                    help="write the summary (and settings, machine) as JSON")
+    p.add_argument("--episodes-log", type=writable, default=None, metavar="FILE",
+                   help="append each finished (agent, episode) record to FILE as JSON Lines, "
+                   "flushed as it finishes (default: beside --json, x.json -> "
+                   "x.episodes.jsonl, else beside --csv, else none); a new run replaces it")
+    p.add_argument("--resume", type=_existing_file, default=None, metavar="LOG",
+                   help="continue the episode log LOG of a stopped run: run only the "
+                   "(agent, episode) tasks it does not hold and append them to it; the "
+                   "command must name the same --env, --env-kwargs, --seed and agents (else "
+                   "refused), --episodes may differ; the numbers equal an uninterrupted run's")
     p.add_argument("--json-episodes", action="store_true",
                    help="also put every episode's record in the JSON")
     p.add_argument("--csv", type=writable, default=None, metavar="FILE",
