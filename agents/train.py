@@ -13,11 +13,22 @@ named as rl_zoo3's flags).  A run writes, under its log directory::
     progress.csv           SB3's logger (plus TensorBoard event files if tensorboard is installed)
     monitor/               per-episode reward, fetch rate, LE, success (SB3 Monitor CSVs)
     eval/                  EvalCallback: evaluations.npz and best_model.zip
-    checkpoints/           CheckpointCallback: rl_model_<steps>_steps.zip (+ SAC replay buffer)
+    checkpoints/           rl_model_<steps>_steps.zip (+ SAC's replay buffer, as
+                           rl_model_replay_buffer_<steps>_steps.npz)
+    train.lock             while the run lives: its process id, host and start time
 
 A call is checked whole (ids, hyperparameters, checkpoint, log directory) and the env and
 model are built before anything in the log directory is created or opened, so a mistake leaves
-an earlier run's files as they were.
+an earlier run's files as they were.  Nothing of a run is lost or silently replaced
+(:mod:`agents.train_safety`): one run at a time holds a log directory (a second is refused,
+naming the first's process); a log directory that holds a run (its model, config or
+checkpoints) is refused unless the call resumes it or says ``overwrite``; SIGTERM, SIGHUP and
+Ctrl-C end training at the next step with a checkpoint to resume from (:class:`TrainStopped`);
+every model, checkpoint, config and evaluation log is written atomically.
+
+Loading a checkpoint to resume never unpickles anything from it
+(:func:`agents.sb3_agent.safe_custom_objects`); a SAC replay buffer is read from npz without
+pickle, and SB3's pickled ``.pkl`` buffers only when trusted (``trust_replay_buffer``).
 
 Resuming (``resume=CHECKPOINT``): the budget is the total step count, the checkpoint's steps
 included.  The algorithm's arguments are the checkpoint's; ``overrides`` may change those SB3
@@ -33,7 +44,6 @@ from __future__ import annotations
 
 import copy
 import enum
-import io
 import json
 import math
 import os
@@ -49,6 +59,21 @@ from typing import Any
 
 import yaml
 
+from agents.train_safety import (
+    RunLock,
+    StopSignals,
+    check_unlocked,
+    checkpoint_callback,
+    earlier_run,
+    eval_callback,
+    find_replay_buffer,
+    load_replay_buffer,
+    remove_earlier_run,
+    save_checkpoint,
+    save_model_atomic,
+    stoppable,
+    write_bytes_atomic,
+)
 from fetch_env.errors import env_error_line
 
 ALGOS: tuple[str, ...] = ("ppo", "sac")
@@ -116,7 +141,24 @@ OBJECTS: tuple[str, ...] = ("action_noise", "rollout_buffer_class", "replay_buff
 
 
 class TrainError(Exception):
-    """A bad training request (unknown id, missing file, bad hyperparameter): one line."""
+    """A bad training request (unknown id, missing file, bad hyperparameter, a log directory
+    in use or holding a run): one line."""
+
+
+class TrainStopped(KeyboardInterrupt):
+    """Training ended early on SIGTERM, SIGHUP or SIGINT, after saving ``checkpoint`` (and
+    SAC's replay buffer beside it) and the model so far: ``resume=checkpoint`` continues."""
+
+    def __init__(self, signame: str, signum: int, steps: int, total: int, checkpoint: Path,
+                 log_dir: Path) -> None:
+        self.signame, self.signum, self.steps, self.total = signame, signum, steps, total
+        self.checkpoint, self.log_dir = checkpoint, log_dir
+        super().__init__(self.one_line())
+
+    def one_line(self) -> str:
+        return (f"stopped by {self.signame} at step {self.steps} of {self.total}; saved "
+                f"{self.checkpoint}: continue with --resume {self.checkpoint} --log-dir "
+                f"{self.log_dir} --timesteps {self.total}")
 
 
 class _Loader(yaml.SafeLoader):
@@ -266,6 +308,9 @@ class _Plan:
     monitor_starts: dict[int, float] = field(default_factory=dict)  # monitor logs to continue
     eval_history: dict[str, list[Any]] | None = None
     append_progress: bool = False
+    data: dict[str, Any] = field(default_factory=dict)  # the checkpoint's (JSON) data
+    replay_buffer: Path | None = None    # SAC's buffer beside the checkpoint
+    overwrite: bool = False             # remove an earlier run's files first
 
     @property
     def n_envs(self) -> int:
@@ -340,7 +385,7 @@ def _eval_history(path: Path, n_eval_episodes: int) -> dict[str, list[Any]] | No
     import numpy as np
 
     try:
-        with np.load(path) as npz:
+        with np.load(path, allow_pickle=False) as npz:
             hist = {k: npz[k].tolist() for k in npz.files}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile):
         hist = {}
@@ -452,7 +497,8 @@ def _run_settings(given: dict[str, int | None], legacy: dict[str, Any], algo: st
 def _plan(algo: str | None, env_id: str, timesteps: int | None, seed: int, log_dir: Path,
           resume: str | Path | None, hyperparams_file: str | Path | None,
           overrides: dict[str, Any], eval_enabled: bool,
-          given: dict[str, int | None] | None = None) -> _Plan:
+          given: dict[str, int | None] | None = None, overwrite: bool = False,
+          trust_replay_buffer: bool = False) -> _Plan:
     """Check the whole request; reads files, writes none."""
     ids = env_ids()
     if env_id not in ids:
@@ -484,12 +530,38 @@ def _plan(algo: str | None, env_id: str, timesteps: int | None, seed: int, log_d
     plan = _Plan(algo=algo, env_id=env_id, total=total, seed=seed, log_dir=log_dir, ctor=ctor,
                  run=run, settings=settings, source=source, overrides=dict(overrides),
                  resume=Path(resume) if resume is not None else None, done=done,
-                 resume_kwargs=resume_kwargs)
-    if log_dir.exists() and not log_dir.is_dir():
-        raise TrainError(f"--log-dir {str(log_dir)!r} is a file, not a directory")
-    if resume is not None and log_dir.is_dir():
-        _plan_continuation(plan, eval_enabled)
+                 resume_kwargs=resume_kwargs, data=data, overwrite=overwrite)
+    _plan_log_dir(plan, eval_enabled, trust_replay_buffer)
     return plan
+
+
+def _plan_log_dir(plan: _Plan, eval_enabled: bool, trust_replay_buffer: bool) -> None:
+    """The log dir: free (no live run holds its lock), and holding no earlier run unless
+    this one resumes it or overwrites it; SAC's replay buffer beside the checkpoint, loaded
+    only from npz or when trusted (a pickle can run code)."""
+    d = plan.log_dir
+    if d.exists() and not d.is_dir():
+        raise TrainError(f"--log-dir {str(d)!r} is a file, not a directory")
+    if plan.resume is not None and plan.overwrite:
+        raise TrainError("--resume continues the run in --log-dir and --overwrite replaces "
+                         "it: give one of them")
+    if d.is_dir():
+        check_unlocked(d)
+        found = earlier_run(d)
+        if found is not None and plan.resume is None and not plan.overwrite:
+            raise TrainError(f"--log-dir {str(d)!r} already holds a run ({found}): "
+                             "--overwrite replaces it, --resume CHECKPOINT continues it, or "
+                             "choose another --log-dir")
+        if plan.resume is not None:
+            _plan_continuation(plan, eval_enabled)
+    if plan.resume is not None and plan.algo == "sac":
+        plan.replay_buffer = find_replay_buffer(plan.resume)
+        if (plan.replay_buffer is not None and plan.replay_buffer.suffix == ".pkl"
+                and not trust_replay_buffer):
+            raise TrainError(f"the replay buffer {str(plan.replay_buffer)!r} is a pickle, "
+                             "which can run code when loaded (food-fetch train writes .npz): "
+                             "--trust-replay-buffer loads it if you trust its source; or move "
+                             "it away to resume with an empty buffer")
 
 
 def _plan_continuation(plan: _Plan, eval_enabled: bool) -> None:
@@ -563,27 +635,49 @@ def _build(plan: _Plan, verbose: int, eval_enabled: bool) -> tuple[Any, Any, Any
                 raise TrainError(f"bad {plan.algo} hyperparameters {_blame(exc, plan)}: "
                                  f"{_first_line(exc)}") from None
         else:
-            try:
-                model = cls.load(str(plan.resume), env=env, device="cpu", verbose=verbose,
-                                 **plan.resume_kwargs)
-            except Exception as exc:  # a corrupt or foreign zip: one line, not a traceback
-                raise TrainError(f"checkpoint {str(plan.resume)!r} is not a valid {plan.algo} "
-                                 f"model: {type(exc).__name__}: {_first_line(exc)}") from None
-            buf = _find_replay_buffer(plan.resume) if plan.algo == "sac" else None
-            if buf is not None:
-                try:
-                    model.load_replay_buffer(str(buf))
-                except Exception as exc:  # same: a file the user pointed at
-                    raise TrainError(f"cannot load the replay buffer {str(buf)!r}: "
-                                     f"{type(exc).__name__}: {_first_line(exc)}") from None
-                if model.replay_buffer.n_envs != plan.n_envs:
-                    raise TrainError(f"bad hyperparameter n_envs={plan.n_envs}: the replay "
-                                     f"buffer {str(buf)!r} holds {model.replay_buffer.n_envs}")
+            model = _load_checkpoint(plan, cls, env, verbose)
     except TrainError:
         for e in envs:
             e.close()
         raise
     return env, model, eval_env
+
+
+def _load_checkpoint(plan: _Plan, cls: Any, env: Any, verbose: int) -> Any:
+    """The checkpoint as a model on ``env``, nothing in it unpickled: its pickled entries are
+    rebuilt from the env, the numbers beside them, the run's config and this run's
+    hyperparameters; SAC's replay buffer from npz (or a trusted pickle)."""
+    from agents.sb3_agent import ModelLoadError, config_near, safe_custom_objects
+
+    assert plan.resume is not None
+    name = repr(str(plan.resume))
+    try:
+        custom = safe_custom_objects(
+            plan.data, plan.algo, f"checkpoint {name}",
+            observation_space=env.observation_space, action_space=env.action_space,
+            settings={**plan.ctor, **config_near(plan.resume)}, for_training=True)
+        model = cls.load(str(plan.resume), env=env, device="cpu", verbose=verbose,
+                         custom_objects=custom, **plan.resume_kwargs)
+    except ModelLoadError as exc:
+        raise TrainError(str(exc)) from None
+    except Exception as exc:  # a corrupt or foreign zip: one line, not a traceback
+        raise TrainError(f"checkpoint {name} is not a valid {plan.algo} model: "
+                         f"{type(exc).__name__}: {_first_line(exc)}") from None
+    buf = plan.replay_buffer
+    if buf is None:
+        return model
+    if buf.suffix == ".npz":
+        load_replay_buffer(model.replay_buffer, buf)
+        return model
+    try:  # a .pkl the user said to trust (_plan_log_dir refuses it otherwise)
+        model.load_replay_buffer(str(buf))
+    except Exception as exc:  # same: a file the user pointed at
+        raise TrainError(f"cannot load the replay buffer {str(buf)!r}: "
+                         f"{type(exc).__name__}: {_first_line(exc)}") from None
+    if model.replay_buffer.n_envs != plan.n_envs:
+        raise TrainError(f"bad hyperparameter n_envs={plan.n_envs}: the replay "
+                         f"buffer {str(buf)!r} holds {model.replay_buffer.n_envs}")
+    return model
 
 
 def _csv_appender(path: Path) -> Any:
@@ -653,17 +747,7 @@ def _plain(value: Any) -> Any:
 
 
 def _write_config(path: Path, config: dict[str, Any]) -> None:
-    tmp = path.with_name(path.name + ".part")  # never a half-written config.yml
-    tmp.write_text(yaml.safe_dump(config, sort_keys=False))
-    os.replace(tmp, path)
-
-
-def _save_model(model: Any, path: Path) -> None:
-    buf = io.BytesIO()
-    model.save(buf)
-    tmp = path.with_name(path.name + ".part")  # an interrupted save keeps the old model.zip
-    tmp.write_bytes(buf.getvalue())
-    os.replace(tmp, path)
+    write_bytes_atomic(path, yaml.safe_dump(config, sort_keys=False).encode())
 
 
 def _versions() -> dict[str, str]:
@@ -701,25 +785,10 @@ def _progress_callback(total: int, enabled: bool) -> Any:
     return TqdmCallback()
 
 
-def _find_replay_buffer(checkpoint: Path) -> Path | None:
-    # CheckpointCallback: rl_model_<n>_steps.zip next to rl_model_replay_buffer_<n>_steps.pkl
-    stem = checkpoint.stem
-    if stem.endswith("_steps") and "_" in stem[:-6]:
-        prefix, n = stem[:-6].rsplit("_", 1)
-        cand = checkpoint.with_name(f"{prefix}_replay_buffer_{n}_steps.pkl")
-        if cand.exists():
-            return cand
-    return None
-
-
 def _eval_callback(plan: _Plan, eval_env: Any) -> Any:
-    from stable_baselines3.common.callbacks import EvalCallback
-
-    cb = EvalCallback(eval_env, n_eval_episodes=plan.n_eval_episodes,
-                      eval_freq=max(1, plan.eval_freq // plan.n_envs),
-                      log_path=str(plan.log_dir / "eval"),
-                      best_model_save_path=str(plan.log_dir / "eval"), deterministic=True,
-                      verbose=0)
+    cb = eval_callback(eval_env, plan.log_dir / "eval", n_eval_episodes=plan.n_eval_episodes,
+                       eval_freq=max(1, plan.eval_freq // plan.n_envs), deterministic=True,
+                       verbose=0)
     hist = plan.eval_history
     if hist:  # continue the earlier evaluations; a new best must beat the earlier best
         cb.evaluations_timesteps = list(hist["timesteps"])
@@ -731,12 +800,101 @@ def _eval_callback(plan: _Plan, eval_env: Any) -> Any:
     return cb
 
 
+def _config(plan: _Plan, model: Any, eval_enabled: bool, threads: int,
+            command: list[str] | None) -> dict[str, Any]:
+    """config.yml: everything needed to repeat the run."""
+    if plan.resume is None:
+        hyperparams = {**plan.ctor, **plan.run}
+    else:  # what the loaded model uses: the checkpoint's arguments and the overrides applied
+        hyperparams = {**{k: _plain(getattr(model, k)) for k in plan.ctor if hasattr(model, k)},
+                       **plan.run}
+    resumed = plan.resume is not None
+    config = {"algo": plan.algo, "env": plan.env_id, "seed": plan.seed,
+              "timesteps": plan.total, "hyperparams": hyperparams,
+              "run_settings": {**plan.settings, "eval": bool(eval_enabled)},
+              "resumed_from": str(plan.resume) if resumed else None,
+              "resumed_at_step": plan.done if resumed else None,
+              "replay_buffer_from": str(plan.replay_buffer) if plan.replay_buffer else None,
+              "threads": threads, "versions": _versions(),
+              "command": command if command is not None else sys.argv,
+              "started": time.strftime("%Y-%m-%d %H:%M:%S")}
+    if plan.previous_runs:
+        config["previous_runs"] = plan.previous_runs
+    return config
+
+
+def _callbacks(plan: _Plan, eval_env: Any, progress: bool, stop: StopSignals) -> Any:
+    callbacks: list[Any] = [_progress_callback(plan.total, progress)]
+    if plan.save_freq > 0:
+        callbacks.append(checkpoint_callback(max(1, plan.save_freq // plan.n_envs),
+                                             plan.log_dir / "checkpoints"))
+    if eval_env is not None:
+        callbacks.append(_eval_callback(plan, eval_env))
+    return stoppable(callbacks, stop)
+
+
+def _finish(plan: _Plan, model: Any, config: dict[str, Any], stop: StopSignals,
+            wall: float) -> Path | None:
+    """Save model.zip and the final config; a run that ended short of its budget (a stop
+    signal, an error) also saves a checkpoint to resume from, whose path is returned."""
+    steps = int(model.num_timesteps)
+    checkpoint = None
+    if steps < plan.total:
+        checkpoint = save_checkpoint(model, plan.log_dir / "checkpoints")
+        config["stopped"] = {"by": stop.name or "an error", "at_step": steps,
+                             "checkpoint": str(checkpoint)}
+    save_model_atomic(model, plan.log_dir / "model.zip")
+    config.update(finished_steps=steps, wall_time_s=round(time.perf_counter() - wall, 1),
+                  finished=time.strftime("%Y-%m-%d %H:%M:%S"))
+    _write_config(plan.log_dir / "config.yml", config)
+    return checkpoint
+
+
+def _run(plan: _Plan, env: Any, model: Any, eval_env: Any, *, progress: bool, threads: int,
+         verbose: int, eval_enabled: bool, command: list[str] | None) -> Path:
+    """Train under the lock: logs opened (an earlier run's files first removed when
+    overwriting), config written, learn, then :func:`_finish`; TrainStopped on a signal."""
+    try:
+        if plan.overwrite:
+            remove_earlier_run(plan.log_dir)
+        logger = _open_logs(plan, env, verbose)
+    except OSError as exc:
+        for e in (env, eval_env):
+            if e is not None:
+                e.close()
+        raise TrainError(f"cannot write to --log-dir {str(plan.log_dir)!r}: "
+                         f"{exc.strerror}") from None
+    model.set_logger(logger)
+    config = _config(plan, model, eval_enabled, threads, command)
+    _write_config(plan.log_dir / "config.yml", config)
+    wall = time.perf_counter()
+    stop = StopSignals()
+    try:
+        with stop:  # a signal while saving waits for the save
+            try:
+                model.learn(total_timesteps=plan.total - plan.done,
+                            callback=_callbacks(plan, eval_env, progress, stop),
+                            reset_num_timesteps=plan.resume is None, progress_bar=False)
+            finally:
+                checkpoint = _finish(plan, model, config, stop, wall)
+    finally:
+        logger.close()
+        for e in (env, eval_env):
+            if e is not None:
+                e.close()
+    if stop.signum is not None and checkpoint is not None:
+        raise TrainStopped(stop.name, stop.signum, int(model.num_timesteps), plan.total,
+                           checkpoint, plan.log_dir)
+    return plan.log_dir / "model.zip"
+
+
 def train(algo: str | None, env_id: str, timesteps: int | None, seed: int,
           log_dir: str | Path, *, resume: str | Path | None = None,
           hyperparams_file: str | Path | None = None, overrides: dict[str, Any] | None = None,
           progress: bool = True, threads: int = 1, verbose: int = 0, eval_enabled: bool = True,
           command: list[str] | None = None, eval_freq: int | None = None,
-          n_eval_episodes: int | None = None, save_freq: int | None = None) -> Path:
+          n_eval_episodes: int | None = None, save_freq: int | None = None,
+          overwrite: bool = False, trust_replay_buffer: bool = False) -> Path:
     """Train and save ``log_dir/model.zip``; returns its path.
 
     ``algo`` None: the checkpoint's algorithm when resuming, else PPO.  ``timesteps`` is the
@@ -746,63 +904,35 @@ def train(algo: str | None, env_id: str, timesteps: int | None, seed: int,
     ``eval_freq`` and ``save_freq`` (steps; <= 0: off) default to a quarter of the budget,
     ``n_eval_episodes`` to 20; ``overrides`` may also give them as ``eval_freq``,
     ``n_eval_episodes`` and ``checkpoint_freq``.
+
+    ``log_dir`` is locked for the run (TrainError if another run holds it); a ``log_dir``
+    holding an earlier run is refused unless ``resume`` continues it or ``overwrite`` replaces
+    it (its model, config, logs, evaluations and checkpoints are deleted once the new run is
+    built).  SIGTERM, SIGHUP or SIGINT end training at the next step: the model, a checkpoint
+    (with SAC's replay buffer) and the config are saved, then :class:`TrainStopped` is raised.
+    A SAC replay buffer saved by SB3 as a pickle is loaded only with ``trust_replay_buffer``.
     """
     import torch
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 
     log_dir = Path(log_dir)
     given = {"eval_freq": eval_freq, "n_eval_episodes": n_eval_episodes, "save_freq": save_freq}
     plan = _plan(algo, env_id, timesteps, seed, log_dir, resume, hyperparams_file,
-                 dict(overrides or {}), eval_enabled, given)
+                 dict(overrides or {}), eval_enabled, given, overwrite=overwrite,
+                 trust_replay_buffer=trust_replay_buffer)
     torch.set_num_threads(max(1, int(threads)))
     env, model, eval_env = _build(plan, verbose, eval_enabled)
     # Only now, with everything checked and built, does the log dir change.
     try:
-        logger = _open_logs(plan, env, verbose)
-    except OSError as exc:
-        env.close()
-        if eval_env is not None:
-            eval_env.close()
+        lock = RunLock.acquire(log_dir, command)
+    except (TrainError, OSError) as exc:
+        for e in (env, eval_env):
+            if e is not None:
+                e.close()
+        if isinstance(exc, TrainError):
+            raise
         raise TrainError(f"cannot write to --log-dir {str(log_dir)!r}: {exc.strerror}") from None
-    model.set_logger(logger)
-
-    if plan.resume is None:
-        hyperparams = {**plan.ctor, **plan.run}
-    else:  # what the loaded model uses: the checkpoint's arguments and the overrides applied
-        hyperparams = {**{k: _plain(getattr(model, k)) for k in plan.ctor if hasattr(model, k)},
-                       **plan.run}
-    config = {"algo": plan.algo, "env": env_id, "seed": seed, "timesteps": plan.total,
-              "hyperparams": hyperparams,
-              "run_settings": {**plan.settings, "eval": bool(eval_enabled)},
-              "resumed_from": str(resume) if resume is not None else None,
-              "resumed_at_step": plan.done if resume is not None else None,
-              "threads": threads, "versions": _versions(),
-              "command": command if command is not None else sys.argv,
-              "started": time.strftime("%Y-%m-%d %H:%M:%S")}
-    if plan.previous_runs:
-        config["previous_runs"] = plan.previous_runs
-    _write_config(log_dir / "config.yml", config)
-
-    callbacks: list[Any] = [_progress_callback(plan.total, progress)]
-    if plan.save_freq > 0:
-        callbacks.append(CheckpointCallback(
-            save_freq=max(1, plan.save_freq // plan.n_envs),
-            save_path=str(log_dir / "checkpoints"), save_replay_buffer=plan.algo == "sac"))
-    if eval_env is not None:
-        callbacks.append(_eval_callback(plan, eval_env))
-    wall = time.perf_counter()
     try:
-        model.learn(total_timesteps=plan.total - plan.done, callback=CallbackList(callbacks),
-                    reset_num_timesteps=resume is None, progress_bar=False)
+        return _run(plan, env, model, eval_env, progress=progress, threads=threads,
+                    verbose=verbose, eval_enabled=eval_enabled, command=command)
     finally:
-        out = log_dir / "model.zip"
-        _save_model(model, out)
-        config.update(finished_steps=int(model.num_timesteps),
-                      wall_time_s=round(time.perf_counter() - wall, 1),
-                      finished=time.strftime("%Y-%m-%d %H:%M:%S"))
-        _write_config(log_dir / "config.yml", config)
-        logger.close()
-        env.close()
-        if eval_env is not None:
-            eval_env.close()
-    return out
+        lock.release()

@@ -201,8 +201,14 @@ def _csv_rows(path: Path) -> list[dict[str, str]]:
 
 @pytest.mark.parametrize("argv, fragment", [
     (["--hyperparams", "bogus_key=1"], "unknown ppo hyperparameter 'bogus_key'"),
-    (["--hyperparams", "env_kwargs={bogus: 1}"], "env_kwargs={'bogus': 1}"),
+    # --overwrite deletes the earlier run only once the new one is built: not here
+    (["--overwrite", "--hyperparams", "env_kwargs={bogus: 1}"], "env_kwargs={'bogus': 1}"),
+    (["--overwrite", "--hyperparams", "policy_kwargs={net_arch: abc}"],
+     "bad ppo hyperparameters policy_kwargs="),
     (["--hyperparams", "batch_size=0"], "bad hyperparameter batch_size=0"),
+    ([], "already holds a run (model.zip): --overwrite replaces it"),
+    (["--overwrite", "--resume", "{run}/model.zip", "--timesteps", "24"],
+     "give one of them"),
     (["--algo", "sac", "--resume", "{run}/model.zip"],
      "model.zip' is a ppo model, not sac: use --algo ppo"),
     (["--resume", "{tmp}/notzip.zip"],

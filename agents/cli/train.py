@@ -12,8 +12,13 @@ DESCRIPTION = ("Train PPO or SAC with the hyperparameters shipped for the enviro
                "id (agents/hyperparams/<algo>.yml, which python -m rl_zoo3.train --conf-file "
                "reads as they are). Writes "
                "model.zip, config.yml (to repeat the run), progress.csv, monitor/, eval/ "
-               "(periodic evaluation, best model) and checkpoints/ under --log-dir. Needs the "
-               "train extra (stable-baselines3, torch).")
+               "(periodic evaluation, best model) and checkpoints/ under --log-dir, which one "
+               "run at a time holds (a second is refused, naming the first's process). A "
+               "--log-dir holding a run is refused unless --resume continues it or "
+               "--overwrite replaces it. SIGTERM, SIGHUP or Ctrl-C stop training at the next "
+               "step, save a checkpoint (SAC: with its replay buffer) and print the --resume "
+               "command that continues it; the exit code is 128 + the signal's number. Needs "
+               "the train extra (stable-baselines3, torch).")
 ENV_HELP = "FoodFetch-Block-v0, -Row-v0, -TwoRows-v0 or -Diced-v0"
 
 
@@ -35,7 +40,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     require_extra("train", "train")
     import sys
 
-    from agents.train import TrainError, parse_override, train
+    from agents.train import TrainError, TrainStopped, parse_override, train
 
     try:
         overrides = dict(parse_override(t) for t in args.hyperparams)
@@ -46,9 +51,13 @@ def cmd_train(args: argparse.Namespace) -> int:
                     overrides=overrides, progress=not args.no_progress, threads=args.threads,
                     verbose=args.verbose, eval_enabled=not args.no_eval,
                     command=["food-fetch", *sys.argv[1:]], eval_freq=args.eval_freq,
-                    n_eval_episodes=args.eval_episodes, save_freq=args.save_freq)
+                    n_eval_episodes=args.eval_episodes, save_freq=args.save_freq,
+                    overwrite=args.overwrite, trust_replay_buffer=args.trust_replay_buffer)
     except TrainError as exc:
         raise UsageError(f"food-fetch train: {exc}") from None
+    except TrainStopped as exc:  # the checkpoint is saved: one line and the signal's code
+        print(f"food-fetch train: {exc.one_line()}", file=sys.stderr)
+        return 128 + exc.signum
     print(f"saved model       {out}")
     print(f"config            {out.parent / 'config.yml'}")
     print(f"evaluate with     food-fetch evaluate --agent {out} --env {args.env}")
@@ -79,7 +88,16 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    "others are refused; n_envs, env_kwargs and the run settings apply as "
                    "for a new run. "
                    "Resuming into the --log-dir of the same run appends to its monitor, "
-                   "progress and evaluation logs")
+                   "progress and evaluation logs. Nothing in the checkpoint is unpickled "
+                   "(docs/security.md)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the run --log-dir holds: its model.zip, config.yml, logs, "
+                   "evaluations and checkpoints are deleted once the new run is built "
+                   "(without it, a --log-dir holding a run is refused)")
+    p.add_argument("--trust-replay-buffer", action="store_true",
+                   help="with --resume, load a SAC replay buffer saved as a pickle (.pkl, "
+                   "e.g. by SB3 or rl_zoo3), which can run code: only for a file you trust. "
+                   "food-fetch train's own buffers (.npz) need no trust")
     p.add_argument("--hyperparams-file", default=None, metavar="YAML",
                    help="use this YAML instead of the shipped one (same layout)")
     p.add_argument("--hyperparams", nargs="*", default=[], metavar="KEY=VALUE",
