@@ -59,6 +59,7 @@ from typing import Any
 
 import yaml
 
+from agents.atomic import write_atomic
 from agents.train_safety import (
     RunLock,
     StopSignals,
@@ -72,7 +73,6 @@ from agents.train_safety import (
     save_checkpoint,
     save_model_atomic,
     stoppable,
-    write_bytes_atomic,
 )
 from fetch_env.errors import env_error_line
 
@@ -747,7 +747,7 @@ def _plain(value: Any) -> Any:
 
 
 def _write_config(path: Path, config: dict[str, Any]) -> None:
-    write_bytes_atomic(path, yaml.safe_dump(config, sort_keys=False).encode())
+    write_atomic(path, yaml.safe_dump(config, sort_keys=False))
 
 
 def _versions() -> dict[str, str]:

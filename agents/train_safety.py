@@ -11,7 +11,8 @@ buffer in a format that loads without unpickling.
   ``train()`` saves a checkpoint (and SAC's replay buffer) to resume from.  A second signal
   interrupts at once (``KeyboardInterrupt``); every file is still whole, written atomically.
 * **Atomic files.**  Every model, checkpoint, evaluation log and buffer is written to a
-  temporary file in the same folder and moved into place with ``os.replace``.
+  temporary file in the same folder and moved into place with ``os.replace``
+  (:func:`agents.atomic.write_atomic`).
 * **Replay buffers without pickle.**  SB3 pickles its replay buffer (``.pkl``), and loading a
   pickle can run code.  food-fetch train writes the buffer's arrays to ``.npz`` and reads them
   back with ``allow_pickle=False``; a ``.pkl`` buffer is loaded only when the user says it is
@@ -35,6 +36,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from agents.atomic import write_atomic
+
 LOCK_NAME = "train.lock"
 STOP_SIGNALS: tuple[int, ...] = (signal.SIGTERM, signal.SIGHUP, signal.SIGINT)
 BUFFER_FORMAT = "food-fetch replay buffer 1"
@@ -49,29 +52,11 @@ def _error(message: str) -> Exception:
 
 
 # ---------------------------------------------------------------------------- atomic files
-def _tmp(path: Path) -> Path:
-    return path.with_name(f".{path.name}.{os.getpid()}.part")
-
-
-def write_bytes_atomic(path: Path, payload: bytes) -> None:
-    """``path`` holds either its old content or ``payload``, never part of it."""
-    tmp = _tmp(path)
-    try:
-        with open(tmp, "wb") as fh:
-            fh.write(payload)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def save_model_atomic(model: Any, path: Path) -> None:
     """SB3's ``model.save`` into memory, then atomically to ``path``."""
     buf = io.BytesIO()
     model.save(buf)
-    write_bytes_atomic(path, buf.getvalue())
+    write_atomic(path, buf.getvalue())
 
 
 # ------------------------------------------------------------------------------- the lock
@@ -328,7 +313,7 @@ def save_replay_buffer(buffer: Any, path: Path) -> None:
             "buffer_size": int(buffer.buffer_size), "n_envs": int(buffer.n_envs)}
     out = io.BytesIO()
     np.savez(out, meta=np.array(json.dumps(meta)), **arrays)
-    write_bytes_atomic(path, out.getvalue())
+    write_atomic(path, out.getvalue())
 
 
 def load_replay_buffer(buffer: Any, path: Path) -> None:
