@@ -63,8 +63,8 @@ def rss_mib() -> float:
 
 def window(n: int, shares: tuple[float, float]) -> slice:
     """Episodes ``shares`` of a run of ``n`` (at least one episode)."""
-    lo = min(int(round(shares[0] * n)), n - 1)
-    return slice(lo, max(int(round(shares[1] * n)), lo + 1))
+    lo = min(round(shares[0] * n), n - 1)
+    return slice(lo, max(round(shares[1] * n), lo + 1))
 
 
 def summarize(rss: list[float], wall: list[float]) -> dict[str, Any]:

@@ -52,8 +52,9 @@ from typing import Any
 
 from fetch_env.errors import ParameterClippedWarning
 
-__all__ = ["RULES", "ClipRecord", "message", "record", "reported_elsewhere", "warn",
-           "warn_once"]
+# The user's part: the rules and the switch for callers that report the changes themselves.
+# record, message, warn and warn_once serve the package's own modules and command line.
+__all__ = ["RULES", "ClipRecord", "reported_elsewhere"]
 
 ClipRecord = dict[str, Any]  # {"name", "given", "applied", "reason"}
 

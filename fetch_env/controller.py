@@ -191,6 +191,11 @@ def make_profile(experiment: str, action: FetchAction, dt: float,
     With ``time_scale`` (relaxation only) the hold past ``time_scale.realtime`` is simulated
     time-scaled (:class:`TimeScale`): one step per entry of ``TimeScale.step_times``.
     """
+    require(isinstance(action, FetchAction), "action", action, "a FetchAction")
+    require_finite("dt", dt)
+    require(1e-5 <= dt <= 0.1, "dt", dt, "in [1e-5, 0.1] s")
+    require(time_scale is None or isinstance(time_scale, TimeScale), "time_scale", time_scale,
+            "a TimeScale or None")
     segments: list[tuple[str, float, float, float]] = []  # (phase, duration, dtheta, dlift)
     t_clamp = action.theta_d / action.omega
     segments.append(("settle", action.settle, 0.0, 0.0))

@@ -10,6 +10,8 @@ Helpers for agents (all importable from ``fetch_env.env``): ``ACTION_RANGES``,
 from __future__ import annotations
 
 import math
+import os
+import sys
 import time
 from collections import OrderedDict
 from collections.abc import Callable
@@ -19,6 +21,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from fetch_env import clipping
 from fetch_env.controller import FetchAction, FetchSimulator, SimResult
 from fetch_env.env_scenes import (
     LAYOUTS,
@@ -30,7 +33,13 @@ from fetch_env.env_scenes import (
     preset_scene,
     sample_scene,
 )
-from fetch_env.errors import InvalidParameterError, SimulationDivergedError, require
+from fetch_env.errors import (
+    InvalidParameterError,
+    SimulationDivergedError,
+    check_annotated,
+    check_reset,
+    require,
+)
 from fetch_env.layouts import Piece
 from fetch_env.probes import (
     PARAM_NAMES,
@@ -55,10 +64,12 @@ from fetch_env.spaces import (
     OBS_UNITS,
     Traces,
     action_to_physical,
-    check_action,
+    clip_action,
     decode_observation,
     encode_observation,
+    end_stop_records,
     physical_to_action,
+    theta_d_cap,
 )
 
 if TYPE_CHECKING:
@@ -309,9 +320,16 @@ def _check_reward_options(fetch_weight: float, deformation_weight: float, time_w
 
 def _check_render_options(render_modes: list[str], render_mode: str | None, width: int,
                           height: int, camera: str) -> None:
-    """Refuse an unknown render mode or camera and frame sizes outside [16, 4096] px."""
+    """Refuse an unknown render mode or camera, frame sizes outside [16, 4096] px, and
+    ``"human"`` without a display (MuJoCo's viewer would end the process, uncatchable)."""
     require(render_mode is None or render_mode in render_modes,
             "render_mode", render_mode, f"None or one of {render_modes}")
+    if render_mode == "human" and sys.platform.startswith("linux") and not (
+            os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise InvalidParameterError(
+            "render_mode='human' needs a display (neither DISPLAY nor WAYLAND_DISPLAY is set): "
+            "render off-screen with render_mode='rgb_array' or 'rgb_array_list' (MuJoCo then "
+            "uses EGL, or set MUJOCO_GL=egl / osmesa), e.g. with gymnasium.wrappers.RecordVideo")
     require(isinstance(width, int) and 16 <= width <= 4096, "width", width,
             "an int in [16, 4096]")
     require(isinstance(height, int) and 16 <= height <= 4096, "height", height,
@@ -384,6 +402,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         height: int = 360,
         camera: str = "side",
     ) -> None:
+        check_annotated(FoodFetchEnv.__init__, locals())  # types first: ranges compare numbers
         require(layout in LAYOUTS, "layout", layout, f"one of {LAYOUTS}")
         require(estimator in ESTIMATORS, "estimator", estimator, f"one of {ESTIMATORS}")
         require(damage in DAMAGE_MODES, "damage", damage, f"one of {DAMAGE_MODES}")
@@ -471,8 +490,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
     # ---------------------------------------------------------------- gymnasium API
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        seed, options = check_reset(seed, options)
         super().reset(seed=seed)
-        options = dict(options or {})
         unknown = sorted(set(options) - set(RESET_OPTIONS))
         if unknown:
             raise InvalidParameterError(
@@ -488,9 +507,12 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
             pieces = preset_scene(options["preset"])
         else:
             pieces = sample_scene(self.layout, self.np_random, self.scenes)
-        self._sim_for(pieces).scene_for("fetch")  # compile now: bad pieces fail at reset
-        self.pieces = pieces
-        obs, info = self._observe(pieces)
+        with clipping.reported_elsewhere():  # in info["clipped"], warned once per env
+            self._sim_for(pieces).scene_for("fetch")  # compile now: bad pieces fail at reset
+            self.pieces = pieces
+            obs, info = self._observe(pieces)
+        info["clipped"] = self._last_obs[1]["clipped"] = clipping.reset_clips(self, pieces, info)
+        clipping.warn_once(self, info["clipped"], 'info["clipped"]')
         self._done = False
         self._last_result = None
         if self.render_mode is not None:
@@ -623,10 +645,12 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         return float(min(max(tau1 * math.log(max(ratio, 1.0)), 0.0), self.max_hold))
 
     def _simulate(self, action: Any) -> tuple[float, dict[str, Any], SimResult | None]:
-        phys = action_to_physical(check_action(action))
+        action, clipped = clip_action(action)  # [-1, 1]; reported in info, warned once
+        phys = action_to_physical(action)
         sim = self._sim_for(self.pieces)
         closed = getattr(sim.scene_for("fetch").pose, "theta_closed", math.inf)
-        theta_d = min(phys["theta_d"], 0.98 * closed)
+        theta_d, capped = theta_d_cap(phys["theta_d"], closed)
+        clipped += capped
         fa = FetchAction(theta_d=theta_d, omega=phys["omega"], lift_speed=phys["lift_speed"],
                          hold=self._episode_hold, lift_height=self.lift_height,
                          air_hold=self.air_hold, settle=self.settle)
@@ -636,6 +660,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         info["action_applied"] = {"theta_d": fa.theta_d, "omega": fa.omega,
                                   "lift_speed": fa.lift_speed, "hold": fa.hold}
         info["episode_time"] = duration
+        info["clipped"] = [*info.get("clipped", []), *clipped]
+        clipping.warn_once(self, clipped, 'info["clipped"]')
         try:
             result: SimResult | None = sim.run("fetch", fa)
         except SimulationDivergedError as exc:
@@ -646,6 +672,9 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
                         error=exc.one_line())
             return float(reward_time), info, None
         assert result is not None
+        stop = end_stop_records(fa.theta_d, result.extra, closed)
+        info["clipped"] += stop
+        clipping.warn_once(self, stop, 'info["clipped"]')
         le = max(max(p["max_log_strain_clamp"], p["max_log_strain_lift"])
                  for p in result.pieces)
         share = result.fetch_rate_mass if self.fetch_by_mass else result.fetch_rate

@@ -76,6 +76,22 @@ def require_int(name: str, value: Any) -> None:
             name, value, "an integer")
 
 
+def require_pieces(name: str, pieces: Any) -> None:
+    """Refuse anything but a non-empty tuple or list of :class:`fetch_env.layouts.Piece`."""
+    from fetch_env.layouts import Piece  # (layouts imports this module)
+
+    require(isinstance(pieces, tuple | list) and len(pieces) > 0, name, _Shown(pieces),
+            "a non-empty sequence of Piece")
+    for i, p in enumerate(pieces):
+        require(isinstance(p, Piece), f"{name}[{i}]", _Shown(p), "a Piece")
+
+
+def require_type(name: str, value: Any, kind: type | tuple[type, ...], what: str) -> None:
+    """Refuse ``value`` unless it is a ``kind``: another object would fail later with a bare
+    ``AttributeError`` or ``TypeError``."""
+    require(isinstance(value, kind), name, _Shown(value), what)
+
+
 def env_error_line(exc: BaseException) -> str:
     """The first line of an error raised while building an env, without the suffix
     gymnasium appends (" was raised from the environment creator for ... with kwargs ...")."""

@@ -122,9 +122,13 @@ def sample_foods(n: int, seed: int, young_range: tuple[float, float] = YOUNG_RAN
     """
     require(isinstance(n, int | np.integer) and not isinstance(n, bool), "n", n, "an integer")
     require(1 <= n <= 4096, "n", n, "in [1, 4096]")
-    require(isinstance(seed, int | np.integer) and seed >= 0, "seed", seed, "an integer >= 0")
-    lo, hi = (float(v) for v in young_range)
-    if not (1e3 <= lo < hi <= 1e9):
+    require(isinstance(seed, int | np.integer) and not isinstance(seed, bool) and seed >= 0,
+            "seed", seed, "an integer >= 0")
+    ok = isinstance(young_range, tuple | list) and len(young_range) == 2
+    lo, hi = young_range if ok else (math.nan, math.nan)
+    ok = ok and all(isinstance(v, int | float | np.integer | np.floating)
+                    and not isinstance(v, bool) for v in (lo, hi))
+    if not (ok and 1e3 <= lo < hi <= 1e9):
         raise InvalidParameterError(
             f"young_range must be increasing within [1e3, 1e9] Pa, got {young_range!r}")
     ranges = dict(RANGES)

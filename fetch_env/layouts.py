@@ -21,6 +21,9 @@ MIN_SIZE, MAX_SIZE = 0.006, 0.025  # [m] the supported piece sizes
 # An ellipsoid of nominal size s has extents (x, y, z) = s * ELLIPSOID_ASPECT: long along the
 # blade (x), so that it presses a larger area against the half-spoons than a sphere does.
 ELLIPSOID_ASPECT = (1.0, 0.75, 0.6)
+MAX_GRID = 16  # most pieces per row or column of a grid
+PLATE_HALF_WIDTH = 0.1  # [m] the plate of assets/fetch_base.xml is 0.2 m square
+MAX_DICED_SPACING = 0.01  # [m] widest gap between the pieces of a diced mix
 
 
 @dataclass(frozen=True)
@@ -31,7 +34,8 @@ class Piece:
         shape: "cube", "ellipsoid" or "sphere".
         size: nominal size [m] (cube edge, sphere diameter, ellipsoid long axis), 6 to 25 mm.
         material: its :class:`Material`.
-        x, y: centre on the plate [m]; y is the clamp direction.
+        x, y: centre on the plate [m], within +-``PLATE_HALF_WIDTH``; y is the clamp
+            direction.
     """
 
     shape: Shape = "cube"
@@ -47,8 +51,11 @@ class Piece:
         require_finite("size", self.size)
         require(MIN_SIZE <= self.size <= MAX_SIZE, "size", self.size,
                 f"in [{MIN_SIZE}, {MAX_SIZE}] m (6 to 25 mm)")
-        require_finite("x", self.x)
-        require_finite("y", self.y)
+        for name in ("x", "y"):
+            value = getattr(self, name)
+            require_finite(name, value)
+            require(abs(value) <= PLATE_HALF_WIDTH, name, value,
+                    f"on the plate, in [-{PLATE_HALF_WIDTH}, {PLATE_HALF_WIDTH}] m")
         require(isinstance(self.material, Material), "material", self.material, "a Material")
 
     @property
@@ -90,7 +97,10 @@ def check_no_overlap(pieces: tuple[Piece, ...] | list[Piece]) -> None:
 
     Touching (zero gap) is allowed; any overlap is an error naming both pieces.
     """
-    require(len(pieces) >= 1, "pieces", len(pieces), "at least one piece")
+    require(isinstance(pieces, tuple | list) and len(pieces) >= 1, "pieces", pieces,
+            "a non-empty sequence of Piece")
+    for i, p in enumerate(pieces):
+        require(isinstance(p, Piece), f"pieces[{i}]", p, "a Piece")
     for (i, a), (j, b) in itertools.combinations(enumerate(pieces), 2):
         gap = np.abs(np.array([a.x - b.x, a.y - b.y])) - (a.extents[:2] + b.extents[:2]) / 2
         if np.all(gap < -1e-9):
@@ -116,7 +126,8 @@ def grid(n_along: int, n_across: int, size: float, spacing_along: float,
     """
     for name, count in (("n_along", n_along), ("n_across", n_across)):
         require_int(name, count)
-        require(count >= 1, name, count, ">= 1")
+        # (no scene holds more: the blades are 48 mm wide, the smallest piece 6 mm)
+        require(1 <= count <= MAX_GRID, name, count, f"in [1, {MAX_GRID}]")
     for name, gap in (("spacing_along", spacing_along), ("spacing_across", spacing_across)):
         require_finite(name, gap)
         require(gap >= 0, name, gap, ">= 0 m")
@@ -158,7 +169,7 @@ def diced_mix(rng: np.random.Generator, n_pieces: int | None = None,
     rows along the clamp direction (one row for a single piece), more in three.  Every random
     choice comes from ``rng``.  ``materials`` names presets to draw from (default: the
     study's five levels); ``size_range`` bounds the nominal sizes, within 6 to 25 mm;
-    ``spacing`` is the gap between neighbours [m], >= 0.
+    ``spacing`` is the gap between neighbours [m], 0 to ``MAX_DICED_SPACING`` (10 mm).
     """
     from fetch_env.materials import STUDY_LEVELS
 
@@ -184,7 +195,9 @@ def diced_mix(rng: np.random.Generator, n_pieces: int | None = None,
     require(MIN_SIZE <= lo <= hi <= MAX_SIZE, "size_range", size_range,
             "within [0.006, 0.025] m with low <= high")
     require_finite("spacing", spacing)
-    require(spacing >= 0, "spacing", spacing, ">= 0 m")
+    # (at most 10 mm: diced food lies close, and 16 pieces of 25 mm then stay on the plate)
+    require(0 <= spacing <= MAX_DICED_SPACING, "spacing", spacing,
+            f"in [0, {MAX_DICED_SPACING}] m")
     # Every row must hold a piece (an empty row has no depth): a single piece lies alone.
     n_along = min(n, 2) if n <= 8 else 3
     n_across = int(np.ceil(n / n_along))

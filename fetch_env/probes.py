@@ -61,6 +61,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -80,7 +81,14 @@ from estimators import (
 from estimators.calibration import ERROR_INPUTS, Calibration
 from estimators.uncertainty import hold_with_intervals, log_interval
 from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator, SimResult, TimeScale
-from fetch_env.errors import SimulationDivergedError, require, require_finite
+from fetch_env.errors import (
+    SimulationDivergedError,
+    require,
+    require_finite,
+    require_int,
+    require_pieces,
+    require_type,
+)
 from fetch_env.layouts import Piece
 from fetch_env.scene import Geometry, Scene, initial_state
 from fetch_env.spaces import VISCO_NAMES
@@ -240,6 +248,7 @@ class ProbeOutcome:
 
 def probe_piece_index(pieces: tuple[Piece, ...]) -> int:
     """The piece nearest the layout's centre (ties: the lowest index)."""
+    require_pieces("pieces", pieces)
     xy = np.array([[p.x, p.y] for p in pieces])
     centre = (xy.min(axis=0) + xy.max(axis=0)) / 2
     return int(np.argmin(np.linalg.norm(xy - centre, axis=1)))
@@ -256,6 +265,7 @@ def nominal_stiffness(piece: Piece) -> float:
     scale, not what a perfect estimator must return: compare g_1, tau_1 and mu exactly and
     K1, K2, B as ratios.
     """
+    require_type("piece", piece, Piece, "a Piece")
     ex, ey, ez = piece.extents
     area = ex * ez if piece.shape == "cube" else math.pi / 4 * ex * ez
     return 2.0 * piece.material.young * area / ey
@@ -263,6 +273,7 @@ def nominal_stiffness(piece: Piece) -> float:
 
 def true_parameters(piece: Piece) -> dict[str, float]:
     """The oracle's values for a piece: K1, K2, B (nominal) and the material's mu, g1, tau1."""
+    require_type("piece", piece, Piece, "a Piece")
     m = piece.material
     k = nominal_stiffness(piece)
     k2 = m.g1 * k
@@ -286,6 +297,7 @@ def elastic_stiffness(piece: Piece, config: ProbeConfig,
     Returns:
         ``{"K_el", "theta_c", "theta_d", "M_el"}`` (N/m, rad, rad, N m).
     """
+    _check_probe_args(piece, config, geometry)
     twin = dataclasses.replace(piece, x=0.0, y=0.0,
                                material=dataclasses.replace(piece.material, g1=0.0))
     sim = FetchSimulator((twin,), geometry, impratio=config.relaxation_impratio,
@@ -324,6 +336,7 @@ def first_contact_angle(scene: Scene) -> tuple[float, float, float]:
         (theta_contact [rad], depth of the first-touched vertex [m], the piece's half-width
         across the faces [m]).
     """
+    require_type("scene", scene, Scene, "a Scene (build_scene)")
     d = initial_state(scene)
     pose = scene.pose
     v = np.asarray(d.flexvert_xpos)
@@ -348,6 +361,9 @@ def probe_angle(sim: FetchSimulator, strain: float, experiment: str) -> float:
     Small-angle travel of the contact point is ``depth * theta``; the result stays below
     the angle at which the faces would meet.
     """
+    require_type("sim", sim, FetchSimulator, "a FetchSimulator")
+    require_finite("strain", strain)
+    require(0 < strain <= 1, "strain", strain, "in (0, 1]")
     scene = sim.scene_for(experiment)
     theta_c, depth, half_width = first_contact_angle(scene)
     theta = theta_c + strain * half_width / depth
@@ -379,6 +395,7 @@ def estimate_viscoelastic(result: SimResult, noise: float = 0.0,
 
     Raises :class:`EstimationError` when neither method can use the trace.
     """
+    _check_run_args(result, "relaxation", noise, rng)
     tr = result.traces
     t0 = float(result.extra.get("t_clamp_start", 0.0))
     # The hold angle the motor was told (the run ends in the hold): theta_d, or where a stiff
@@ -473,6 +490,7 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
     share of each force trace's peak first.  ``diagnostics`` (where given) receives the
     slide's (:func:`_mu_diagnostics`).
     """
+    _check_run_args(result, "slip", noise, rng)
     tr = result.traces
     slide = tr["phase"] == PHASE_CODE["slide"]
     if not slide.any():
@@ -610,6 +628,8 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     diagnostics in ``out.details["diagnostics"]`` (NaN where one is missing), and
     ``details["error_half_width"]`` keeps the half-widths.
     """
+    require_type("calibration", calibration, Calibration, "a Calibration")
+    require_type("out", out, ProbeOutcome, "a ProbeOutcome")
     est = out.estimates
     if not (out.visco_valid and out.friction_valid
             and all(math.isfinite(est[k]) and est[k] > 0 for k in PARAM_NAMES)):
@@ -653,6 +673,10 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     """
     require_finite("noise", noise)
     require(0.0 <= noise <= 0.5, "noise", noise, "in [0, 0.5]")
+    require_int("seed", seed)
+    require(seed >= 0, "seed", seed, ">= 0")
+    require_type("calibration", calibration, Calibration | None, "a Calibration or None")
+    _check_probe_args(None, config, geometry)
     wall = time.perf_counter()
     k = probe_piece_index(pieces)
     piece = dataclasses.replace(pieces[k], x=0.0, y=0.0)
@@ -683,8 +707,30 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
 CALIBRATION_FILE = Path(__file__).with_name("assets") / "probe_calibration.json"
 
 
+def _check_run_args(result: Any, experiment: str, noise: Any, rng: Any) -> None:
+    """Refuse a run that is not a ``SimResult`` of ``experiment``, a noise outside [0, 0.5]
+    and an ``rng`` that is not a numpy Generator or None."""
+    require_type("result", result, SimResult, f"a SimResult of the {experiment} experiment")
+    require(result.experiment == experiment, "result", result.experiment,
+            f"a run of the {experiment} experiment")
+    require_finite("noise", noise)
+    require(0.0 <= noise <= 0.5, "noise", noise, "in [0, 0.5]")
+    require_type("rng", rng, np.random.Generator | None, "a numpy.random.Generator or None")
+
+
+def _check_probe_args(piece: Any, config: Any, geometry: Any) -> None:
+    """Refuse a piece (where given) that is not a ``Piece``, a config that is not a
+    ``ProbeConfig`` and a geometry that is not a ``Geometry`` or None."""
+    if piece is not None:
+        require_type("piece", piece, Piece, "a Piece")
+    require_type("config", config, ProbeConfig, "a ProbeConfig")
+    require_type("geometry", geometry, Geometry | None, "a Geometry or None")
+
+
 def load_calibrations(path: Path = CALIBRATION_FILE) -> dict[str, Calibration]:
     """The shipped calibrations by preset name (none where the file is absent)."""
+    require_type("path", path, str | os.PathLike, "a file name")
+    path = Path(path)
     if not path.exists():
         return {}
     data = json.loads(path.read_text())

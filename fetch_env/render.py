@@ -13,13 +13,21 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from fetch_env.errors import require, require_int
 from fetch_env.scene import Scene, initial_state
+
+CAMERAS: tuple[str, ...] = ("side", "front")  # the base scene's cameras
 
 
 class EpisodeRenderer:
     """Off-screen frames of a scene at rest and replays of a fetch (RGB uint8 arrays)."""
 
     def __init__(self, width: int, height: int, camera: str) -> None:
+        for name, value in (("width", width), ("height", height)):
+            require_int(name, value)
+            require(16 <= value <= 4096, name, value, "in [16, 4096] px")
+        require(isinstance(camera, str) and camera in CAMERAS, "camera", camera,
+                f"one of {CAMERAS}")
         self.width = width
         self.height = height
         self.camera = camera
@@ -45,11 +53,14 @@ class EpisodeRenderer:
 
     def rest_frame(self, scene: Scene) -> np.ndarray:
         """The scene as the episode starts: pieces on the plate, half-spoons open."""
+        require(isinstance(scene, Scene), "scene", scene, "a Scene (build_scene)")
         return self._draw(scene, initial_state(scene))
 
     def replay(self, scene: Scene, traces: dict[str, np.ndarray], pieces: list[dict],
                fps: float) -> list[np.ndarray]:
         """Frames at ``fps`` over a fetch run (see the module docstring for what is exact)."""
+        require(isinstance(scene, Scene), "scene", scene, "a Scene (build_scene)")
+        require(isinstance(fps, int | float) and 0 < fps <= 1000, "fps", fps, "in (0, 1000]")
         m = scene.model
         d = initial_state(scene)
         q_hinge = [m.jnt_qposadr[scene.ids[f"hinge_{s}"]] for s in ("left", "right")]

@@ -18,7 +18,7 @@ import numpy as np
 
 from fetch_env import clipping
 from fetch_env.clipping import ClipRecord
-from fetch_env.errors import InvalidParameterError, require, require_finite
+from fetch_env.errors import InvalidParameterError, require, require_finite, require_pieces
 from fetch_env.layouts import Piece, check_no_overlap
 
 BASE_XML = "fetch_base.xml"
@@ -366,6 +366,7 @@ def young_caps(pieces: tuple[Piece, ...] | list[Piece], timestep: float, first: 
     """A :mod:`fetch_env.clipping` record for each piece whose modulus
     :func:`simulated_young` caps at ``timestep`` (none for the others); the pieces are
     named ``pieces[first + i]``, and ``where`` (e.g. "in the slip probe") ends the reason."""
+    require_pieces("pieces", pieces)
     out = []
     for i, p in enumerate(pieces):
         used = simulated_young(p, timestep)

@@ -9,6 +9,7 @@ constants, which span five decades between the softest and the hardest food).
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Iterator, Mapping
 from typing import Any
 
@@ -16,7 +17,7 @@ import numpy as np
 
 from fetch_env import clipping
 from fetch_env.clipping import ClipRecord
-from fetch_env.errors import InvalidParameterError
+from fetch_env.errors import InvalidParameterError, require, require_finite
 
 
 def _short(value: Any, limit: int = 80) -> str:
@@ -90,6 +91,9 @@ def check_action(action: Any) -> np.ndarray:
 def theta_d_cap(theta_d: float, theta_closed: float) -> tuple[float, list[ClipRecord]]:
     """An environment's clamp angle, capped at 0.98 of ``theta_closed`` (the angle at which
     the half-spoons' tips meet for the scene), and the record of the cap where it applied."""
+    require_finite("theta_d", theta_d)
+    require(isinstance(theta_closed, numbers.Real) and theta_closed > 0, "theta_closed",
+            theta_closed, "a number > 0 rad (inf: no cap)")
     applied = min(theta_d, 0.98 * theta_closed)
     if applied >= theta_d:
         return theta_d, []
@@ -103,6 +107,9 @@ def end_stop_records(theta_d: float, extra: Mapping[str, Any],
                      theta_closed: float) -> list[ClipRecord]:
     """The record of the controller's end stop where it stopped the clamp short of
     ``theta_d`` (``extra``: a run's ``SimResult.extra``; a stall is physics, not a cap)."""
+    if not isinstance(extra, Mapping):
+        raise InvalidParameterError(f"extra must be a run's SimResult.extra, got {_short(extra)}")
+    require_finite("theta_d", theta_d)
     applied = extra.get("theta_d_applied")
     if applied is None or extra.get("stalled_at") is not None or not applied < theta_d:
         return []
@@ -193,6 +200,9 @@ def feature_clips(values: Mapping[str, float]) -> list[ClipRecord]:
     """A :mod:`fetch_env.clipping` record for each layout feature in ``values`` (SI) that the
     observation clips to ``+-OBS_BOUND`` after scaling (estimated parameters out of bounds
     are not clipped but reported as not identified)."""
+    if not isinstance(values, Mapping):
+        raise InvalidParameterError(
+            f"observation values must be a mapping of name -> SI value, got {_short(values)}")
     out = []
     for n in OBS_NAMES:
         if n in VISCO_NAMES or n in FRICTION_NAMES or n not in values:

@@ -37,6 +37,7 @@ from estimators import (
 )
 from estimators.relaxation import detect_contact, infer_kinematics
 from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator, SimResult
+from fetch_env.errors import require, require_finite, require_int, require_type
 from fetch_env.layouts import Piece
 
 # The study's relaxation probe (Figs. 5-6: 0.0244 rad at 0.02 rad/s; a 25 s hold, longer
@@ -59,6 +60,7 @@ def relaxation_traces(result: SimResult) -> tuple[np.ndarray, np.ndarray, np.nda
                                                   ClampGeometry]:
     """``(t, theta, M, geometry)`` of a relaxation run from the clamp start on: time from the
     clamp start, the measured hinge angle and the moment averaged over both half-spoons."""
+    require_type("result", result, SimResult, "a SimResult of the relaxation experiment")
     tr = result.traces
     t0 = float(result.extra.get("t_clamp_start", 0.0))
     sel = tr["t"] >= t0
@@ -67,8 +69,20 @@ def relaxation_traces(result: SimResult) -> tuple[np.ndarray, np.ndarray, np.nda
     return tr["t"][sel] - t0, tr["theta"][sel], m[sel], geom
 
 
+def _check_noise(noise: Any, seed: Any) -> None:
+    """Refuse a sensor noise outside [0, 0.5] of the peak and a seed that is not an int >= 0."""
+    require_finite("noise", noise)
+    require(0 <= noise <= 0.5, "noise", noise, "in [0, 0.5]")
+    require_int("seed", seed)
+    require(seed >= 0, "seed", seed, ">= 0")
+
+
 def add_noise(x: np.ndarray, sd: float, rng: np.random.Generator) -> np.ndarray:
     """``x`` plus white noise of standard deviation ``sd`` (unchanged where ``sd`` is 0)."""
+    require_finite("sd", sd)
+    require(sd >= 0, "sd", sd, ">= 0")
+    require_type("rng", rng, np.random.Generator, "a numpy.random.Generator")
+    require_type("x", x, np.ndarray, "a numpy array")
     return x + sd * rng.standard_normal(x.shape) if sd > 0 else x
 
 
@@ -76,6 +90,8 @@ def study_elastic_stiffness(pieces: tuple[Piece, ...], action: FetchAction
                             ) -> tuple[float, dict[str, Any]]:
     """``K_el`` (N/m): eq. 7 on a purely elastic (``g1 = 0``) run of the same clamp, with the
     contact angle detected on that run's trace; and what it was computed from."""
+    require_type("action", action, FetchAction, "a FetchAction")
+    FetchSimulator(pieces)  # (validates the pieces)
     elastic = tuple(
         dataclasses.replace(p, material=dataclasses.replace(p.material, g1=0.0)) for p in pieces
     )
@@ -111,6 +127,10 @@ def run_relaxation_probe(
     (``t``, ``theta``, ``M``, ``geometry``), ``action``, ``wall_sim``, ``max_log_strain``,
     ``estimate``, ``error`` and, for a fit with positive springs, the ``fitted`` moment curve.
     """
+    require(method in ("full", "three-step"), "method", method, "'full' or 'three-step'")
+    _check_noise(noise, seed)
+    require_finite("clamp_weight", clamp_weight)
+    require(0 < clamp_weight <= 1e6, "clamp_weight", clamp_weight, "in (0, 1e6]")
     kw: dict[str, Any] = {"theta_d": theta_d, "omega": omega, "hold": hold}
     if lift_speed is not None:
         kw["lift_speed"] = lift_speed
@@ -159,6 +179,7 @@ def run_slip_probe(
     ``phase`` codes, ``action``, ``wall_sim``, ``slide_start``, ``max_log_strain``,
     ``estimate`` and ``error``.
     """
+    _check_noise(noise, seed)
     action = FetchAction(theta_d=theta_d, omega=omega, hold=hold, slide_time=slide_time)
     res = FetchSimulator(pieces).run("slip", action)
     tr = res.traces

@@ -52,7 +52,16 @@ from estimators.sls import clamp_angle
 from fetch_env import layouts, spaces
 from fetch_env.controller import FetchAction, FetchSimulator, SimResult, TimeScale
 from fetch_env.errors import InvalidParameterError, SimulationDivergedError
-from fetch_env.layouts import MAX_SIZE, MIN_SIZE, SHAPES, Piece, check_no_overlap
+from fetch_env.layouts import (
+    MAX_DICED_SPACING,
+    MAX_GRID,
+    MAX_SIZE,
+    MIN_SIZE,
+    PLATE_HALF_WIDTH,
+    SHAPES,
+    Piece,
+    check_no_overlap,
+)
 from fetch_env.materials import PRESETS, STUDY_LEVELS, Material, preset
 from fetch_env.probes import ProbeConfig
 from fetch_env.scene import Geometry
@@ -274,16 +283,18 @@ materials = st.one_of(st.sampled_from(sorted(PRESETS)).map(PRESETS.__getitem__),
                       st.sampled_from([1, "soft-0.2MPa", {"young": 1e5}, ()]))
 
 
+PLATE = Range(-PLATE_HALF_WIDTH, PLATE_HALF_WIDTH)
+positions = around(PLATE)
+
+
 @examples(300)
-@given(shape=shapes, size=around(SIZE), material=materials,
-       x=st.one_of(st.floats(-0.1, 0.1), junk), y=st.one_of(st.floats(-0.1, 0.1), junk))
+@given(shape=shapes, size=around(SIZE), material=materials, x=positions, y=positions)
 def test_piece_in_range_or_typed_error(shape: Any, size: Any, material: Any, x: Any,
                                         y: Any) -> None:
     """A piece is built iff its shape is known, its size within 6 to 25 mm, its material a
-    Material and its position finite; its extents, mass and centre are then finite."""
+    Material and its centre on the plate; its extents, mass and centre are then finite."""
     ok = (isinstance(shape, str) and shape in SHAPES and SIZE.contains(size)
-          and isinstance(material, Material) and Range(None, None).contains(x)
-          and Range(None, None).contains(y))
+          and isinstance(material, Material) and PLATE.contains(x) and PLATE.contains(y))
     if ok:
         p = Piece(shape, size, material, x, y)
         assert np.all(np.isfinite(p.extents)) and p.mass > 0
@@ -297,7 +308,9 @@ def test_piece_in_range_or_typed_error(shape: Any, size: Any, material: Any, x: 
 # --------------------------------------------------------------------------------------------
 # layouts
 
-counts = st.one_of(st.integers(-2, 8), st.sampled_from([2.5, 3.0, "3", np.int64(2)]), junk)
+counts = st.one_of(st.integers(-2, 8),
+                   st.sampled_from([2.5, 3.0, "3", np.int64(2), MAX_GRID, MAX_GRID + 1, 10**9]),
+                   junk)
 spacings = around(Range(0.0, None)).filter(lambda v: not (isinstance(v, float) and v > 1.0))
 
 
@@ -326,17 +339,25 @@ def test_single_block(shape: Any, size: Any, material: Any) -> None:
 
 
 def _valid_count(n: Any) -> bool:
-    """Whether ``n`` is a documented count: an integer (not bool) >= 1."""
+    """Whether ``n`` is a documented count: an integer (not bool) in [1, MAX_GRID]."""
     return (isinstance(n, int | np.integer) and not isinstance(n, bool | np.bool_)
-            and n >= 1)
+            and 1 <= n <= MAX_GRID)
+
+
+def _on_plate(n: int, width: float, gap: float) -> bool:
+    """Whether ``n`` pieces ``width`` wide, ``gap`` apart and centred on the origin keep
+    their centres on the plate (computed as ``layouts.grid`` places them)."""
+    return bool(np.all(np.abs((np.arange(n) - (n - 1) / 2) * (width + gap))
+                       <= PLATE_HALF_WIDTH))
 
 
 @examples(250)
 @given(n=counts, spacing=spacings, size=around(Range(0.006, 0.025)))
 def test_single_row(n: Any, spacing: Any, size: Any) -> None:
-    """``n`` >= 1 cubes in a row, ``spacing`` apart; a fractional, textual or missing count or
-    a negative / non-finite spacing is refused."""
-    ok = _valid_count(n) and Range(0.0, None).contains(spacing) and SIZE.contains(size)
+    """``n`` >= 1 cubes in a row, ``spacing`` apart; a fractional, textual or missing count,
+    a negative / non-finite spacing or a row wider than the plate is refused."""
+    ok = (_valid_count(n) and Range(0.0, None).contains(spacing) and SIZE.contains(size)
+          and _on_plate(n, size, spacing))
     if ok:
         pieces = layouts.single_row(spacing_across=spacing, n=n, size=size)
         assert len(pieces) == n
@@ -353,7 +374,8 @@ def test_single_row(n: Any, spacing: Any, size: Any) -> None:
 def test_two_rows(n: Any, along: Any, across: Any, size: Any) -> None:
     """2 x ``n`` cubes in two rows ``along`` apart, neighbours ``across`` apart."""
     ok = (_valid_count(n) and Range(0.0, None).contains(along)
-          and Range(0.0, None).contains(across) and SIZE.contains(size))
+          and Range(0.0, None).contains(across) and SIZE.contains(size)
+          and _on_plate(2, size, along) and _on_plate(n, size, across))
     if ok:
         pieces = layouts.two_rows(n=n, size=size, spacing_along=along, spacing_across=across)
         assert len(pieces) == 2 * n
@@ -405,14 +427,14 @@ def _valid_materials(m: Any) -> bool:
 
 @examples(400)
 @given(seed=st.integers(0, 2**32 - 1), n=diced_counts, lo=size_bounds, hi=size_bounds,
-       spacing=around(Range(0.0, 0.005)), names=material_choices)
+       spacing=around(Range(0.0, MAX_DICED_SPACING)), names=material_choices)
 def test_diced_mix(seed: int, n: Any, lo: Any, hi: Any, spacing: Any, names: Any) -> None:
     """1 to 16 non-overlapping pieces with sizes in ``size_range`` and materials from
     ``materials``, the same for the same seed; anything outside those ranges, a typed error."""
     rng = np.random.default_rng(seed)
     ok = ((n is None or (1 <= n <= 16 if _valid_count(n) else False))
           and SIZE.contains(lo) and SIZE.contains(hi) and lo <= hi
-          and Range(0.0, None).contains(spacing) and _valid_materials(names))
+          and Range(0.0, MAX_DICED_SPACING).contains(spacing) and _valid_materials(names))
     kwargs = {"n_pieces": n, "size_range": (lo, hi), "spacing": spacing, "materials": names}
     if ok:
         pieces = layouts.diced_mix(rng, **kwargs)
