@@ -4,6 +4,7 @@ identical numbers with several workers, partial results on Ctrl-C."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -246,3 +247,132 @@ def test_plots_and_search_regret(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert d["agents"]["study"]["regret_mean"] >= -1e-9
     assert {p.name for p in (tmp_path / "p").iterdir()} == {
         "reward.png", "fetch_rate.png", "theta_vs_stiffness.png"}
+
+
+# ------------------------------------------------------------------------------ resume
+def _log_run(tmp_path: Path, capsys: pytest.CaptureFixture[str], *extra: str
+             ) -> tuple[Path, dict[str, Any]]:
+    """A finished 2-episode study run: its episode log and its JSON."""
+    js = tmp_path / "first.json"
+    code, _out, err = run_cli(["evaluate", "--agent", "study", "--episodes", "2", "--seed", "11",
+                               "--json", str(js), "--json-episodes", "--quiet", *extra], capsys)
+    assert code == 0, err
+    return tmp_path / "first.episodes.jsonl", json.loads(js.read_text())
+
+
+BOTH = ["--agent", "study", "--agent", "random"]
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    ([*BOTH, "--seed", "12"], "made with seed 11, this command has 12"),
+    (["--agent", "study"], 'made with agents ["random", "study"], this command has ["study"]'),
+    ([*BOTH, "--env-kwargs", "hold=0.2"], "made with env_kwargs {}"),
+    ([*BOTH, "--env", "FoodFetch-Row-v0"], 'made with env "FoodFetch-Block-v0"'),
+    ([*BOTH, "--dataset", "food-fetch/x"], "--resume cannot record --dataset"),
+    ([*BOTH, "--episodes-log", "other.jsonl"], "--resume continues its own log"),
+])
+def test_resume_refuses_another_command(argv: list[str], fragment: str, tmp_path: Path,
+                                        monkeypatch: pytest.MonkeyPatch,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """A log resumed by a command whose episodes would differ: one line, exit 2, nothing run
+    and the log unchanged."""
+    log, _ = _log_run(tmp_path, capsys, "--agent", "random")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(ev, "run_episode", lambda t: pytest.fail("an episode ran"))
+    before = log.read_bytes()
+    code, _out, err = run_cli(["evaluate", "--episodes", "2", "--seed", "11", "--quiet", *argv,
+                               "--resume", str(log)], capsys)
+    assert_one_line_error(code, err)
+    assert fragment in err
+    assert log.read_bytes() == before
+
+
+def test_resume_refuses_a_file_that_is_not_a_log(tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    other = tmp_path / "x.jsonl"
+    other.write_text('{"agent": "study", "episode": 0}\n')
+    code, _out, err = run_cli(["evaluate", "--agent", "study", "--resume", str(other)], capsys)
+    assert_one_line_error(code, err)
+    assert "is not an episode log of food-fetch evaluate" in err
+    code, _out, err = run_cli(["evaluate", "--resume", str(tmp_path / "none.jsonl")], capsys)
+    assert_one_line_error(code, err)
+    assert "--resume: no such file" in err
+
+
+def test_resume_runs_only_the_missing_episodes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """A log cut in the middle of its last line (a run killed mid-write): that episode and
+    the later ones run again, the others come from the log, and the JSON numbers equal the
+    uninterrupted run's."""
+    log, first = _log_run(tmp_path, capsys)
+    lines = log.read_text().splitlines(keepends=True)
+    log.write_text(lines[0] + lines[1] + lines[2][:40])  # episode 0 whole, episode 1 cut
+    ran: list[int] = []
+    real = ev.run_episode
+    monkeypatch.setattr(ev, "run_episode", lambda t: ran.append(t.episode) or real(t))
+    js = tmp_path / "resumed.json"
+    code, out, err = run_cli(["evaluate", "--agent", "study", "--episodes", "2", "--seed", "11",
+                              "--json", str(js), "--json-episodes", "--quiet",
+                              "--resume", str(log)], capsys)
+    assert code == 0, err
+    assert ran == [1] and "1 episode(s) from" in out
+    again = json.loads(js.read_text())
+    assert again["episodes_from_log"] == 1
+    strip = lambda rs: [{k: v for k, v in r.items() if k != "wall_s"} for r in rs]  # noqa: E731
+    assert strip(again["episodes_detail"]) == strip(first["episodes_detail"])
+    for key in ("reward_mean", "reward_values", "fetch_rate_values", "time_per_fetch_values"):
+        assert again["agents"]["study"][key] == first["agents"]["study"][key]
+    records = [json.loads(x) for x in log.read_text().splitlines()[1:] if x.endswith("}")]
+    assert sorted(r["episode"] for r in records) == [0, 1]  # the cut line stays, skipped
+
+
+# ------------------------------------------------------------------------------ summaries
+def _records(values: list[float], key: str) -> list[dict[str, Any]]:
+    base = {"reward": 0.5, "fetch_rate": 1.0, "max_log_strain": 0.1, "time_per_fetch": 1.9,
+            "is_success": True, "diverged": False, "theta_d": 0.05, "wall_s": 0.1}
+    return [{**base, "agent": "a", "episode": i, "seed": i, key: v}
+            for i, v in enumerate(values)]
+
+
+@pytest.mark.parametrize("key, low, high", [
+    ("time_per_fetch", 0.0, math.inf), ("max_log_strain", 0.0, math.inf),
+    ("fetch_rate", 0.0, 1.0)])
+def test_intervals_stay_inside_what_the_quantity_can_be(key: str, low: float,
+                                                        high: float) -> None:
+    """Six skewed values, where a t interval leaves the range (checked: it would go below
+    zero); the bootstrap interval stays inside, holds the mean, and is the same twice."""
+    values = [0.02, 0.03, 0.02, 0.04, 0.03, 1.0]
+    assert ev.mean_ci(values)[1] < 0  # what a t interval would print
+    s = ev.summarize(_records(values, key), ["a"])["a"]
+    lo, hi = s[f"{key}_ci95"]
+    assert low <= min(values) <= lo <= s[f"{key}_mean"] <= hi <= max(values) <= high
+    assert ev.summarize(_records(values, key), ["a"])["a"][f"{key}_ci95"] == [lo, hi]
+    assert not s["n_too_small"] and f"{key}_values" not in s
+
+
+def test_below_five_episodes_the_values_instead_of_an_interval() -> None:
+    s = ev.summarize(_records([0.2, 1.0, 1.0, 0.0], "fetch_rate"), ["a"])["a"]
+    assert s["n_too_small"] and s["fetch_rate_values"] == [0.2, 1.0, 1.0, 0.0]
+    assert all(math.isnan(c) for c in s["fetch_rate_ci95"] + s["success_rate_ci95"])
+    table = ev.format_table({"a": s})
+    assert "0.200, 1.000, 1.000, 0.000" in table and "n too small" in table
+    assert "±" not in table.splitlines()[1]
+
+
+def test_stop_signals_are_restored_and_an_ignored_one_stays_ignored() -> None:
+    before = {sig: signal.getsignal(sig) for sig in ev.StopSignals.SIGNALS}
+    old_hup = signal.signal(signal.SIGHUP, signal.SIG_IGN)  # as under nohup
+    try:
+        with ev.StopSignals() as stop:
+            assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+            with pytest.raises(ev.StopRequested) as exc:
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(1)  # the handler runs at the next bytecode
+            assert exc.value.signum == signal.SIGTERM and stop.signum == signal.SIGTERM
+            stop.armed = False
+            os.kill(os.getpid(), signal.SIGINT)  # remembered only: the writing goes on
+            time.sleep(0.05)
+            assert stop.signum == signal.SIGTERM
+    finally:
+        signal.signal(signal.SIGHUP, old_hup)
+    assert {sig: signal.getsignal(sig) for sig in ev.StopSignals.SIGNALS} == before
