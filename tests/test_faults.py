@@ -304,7 +304,10 @@ def test_output_folder_removed_mid_run(tmp_path: Path) -> None:
     shutil.rmtree(out_dir)
     out, err = _finish(proc, TIMEOUT)
     assert proc.returncode == 1, err
-    line = _one_line(err, f"cannot write '{out_dir / 'x.json'}' (No such file or directory)")
+    assert "Traceback" not in err and "leaked" not in err, err
+    notice, line = _lines(err)  # said when the log went, and at the end
+    assert f"the episode log '{out_dir / 'x.episodes.jsonl'}' stopped taking records" in notice
+    assert f"cannot write '{out_dir / 'x.json'}' (No such file or directory)" in line
     assert str(out_dir / "x.csv") in line and str(out_dir / "x.episodes.jsonl") in line
     _table_printed(out, episodes)
     fallback = _fallback(line)

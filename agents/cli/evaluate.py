@@ -144,7 +144,7 @@ def _checked_agents(args: argparse.Namespace) -> tuple[list[str], dict[str, Any]
             agent = make_agent(spec, args.env)
             if hasattr(agent, "model"):
                 agent.model  # noqa: B018 (load now: a corrupt file is a usage error)
-                files[spec] = file_digest(spec)
+                files[spec] = file_digest(getattr(agent, "path", spec))
             describe[spec] = agent.describe()
         except AgentSpecError as exc:
             raise UsageError(f"food-fetch evaluate: {exc}") from None
@@ -230,13 +230,20 @@ def _run_with_bar(args: argparse.Namespace, run: _Run, tasks: list[Any], log: An
     bar = tqdm(total=len(tasks), unit="ep", disable=args.quiet or None, file=sys.stderr,
                desc=f"{args.env} x {len(run.agents)} agents")
 
+    def notify(message: str) -> None:
+        bar.write(f"food-fetch evaluate: {message}", file=sys.stderr)
+
+    log_ok = [True]
+
     def on_result(rec: dict[str, Any]) -> None:
         if log is not None:
             log.append(rec)
+            problem = log.problem() if log_ok[0] else None
+            if problem is not None:  # said at once; the results are written at the end
+                log_ok[0] = False
+                notify(f"the episode log {str(log.path)!r} stopped taking records "
+                       f"({problem}); the run goes on")
         bar.update()
-
-    def notify(message: str) -> None:
-        bar.write(f"food-fetch evaluate: {message}", file=sys.stderr)
 
     wall = time.perf_counter()
     try:
@@ -248,7 +255,7 @@ def _run_with_bar(args: argparse.Namespace, run: _Run, tasks: list[Any], log: An
         stop.armed = False  # from here a signal is remembered: the results get written
         bar.close()
     if log is not None:
-        for rec in new:  # one a stop cut off between its finish and its log line
+        for rec in new:  # a record a stop came between its finish and its log line
             log.append(rec)
         log.close()
     order = {(t.agent, t.episode): i for i, t in enumerate(run.plan)}
