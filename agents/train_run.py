@@ -203,38 +203,43 @@ def _finish(plan: _Plan, model: Any, config: dict[str, Any], stop: StopSignals,
     return checkpoint
 
 
+def _close(*envs: Any) -> None:
+    for e in envs:
+        if e is not None:
+            e.close()
+
+
 def run(plan: _Plan, env: Any, model: Any, eval_env: Any, *, progress: bool, threads: int,
-         verbose: int, eval_enabled: bool, command: list[str] | None) -> Path:
+        verbose: int, eval_enabled: bool, command: list[str] | None) -> Path:
     """Train under the lock: logs opened (an earlier run's files first removed when
-    overwriting), config written, learn, then :func:`_finish`; TrainStopped on a signal."""
-    try:
-        if plan.overwrite:
-            remove_earlier_run(plan.log_dir)
-        logger = _open_logs(plan, env, verbose)
-    except OSError as exc:
-        for e in (env, eval_env):
-            if e is not None:
-                e.close()
-        raise TrainError(f"cannot write to --log-dir {str(plan.log_dir)!r}: "
-                         f"{exc.strerror}") from None
-    model.set_logger(logger)
-    config = _config(plan, model, eval_enabled, threads, command)
-    _write_config(plan.log_dir / "config.yml", config)
-    wall = time.perf_counter()
+    overwriting), config written, learn, then :func:`_finish`; TrainStopped on a signal.
+    From the first file written to the last, a stop signal waits for the files to be saved
+    (one that arrives before training starts skips it)."""
     stop = StopSignals()
-    try:
-        with stop:  # a signal while saving waits for the save
+    with stop:
+        try:
+            if plan.overwrite:
+                remove_earlier_run(plan.log_dir)
+            logger = _open_logs(plan, env, verbose)
+        except OSError as exc:
+            _close(env, eval_env)
+            raise TrainError(f"cannot write to --log-dir {str(plan.log_dir)!r}: "
+                             f"{exc.strerror}") from None
+        model.set_logger(logger)
+        config = _config(plan, model, eval_enabled, threads, command)
+        wall = time.perf_counter()
+        try:
+            _write_config(plan.log_dir / "config.yml", config)
             try:
-                model.learn(total_timesteps=plan.total - plan.done,
-                            callback=_callbacks(plan, eval_env, progress, stop),
-                            reset_num_timesteps=plan.resume is None, progress_bar=False)
+                if stop.signum is None:
+                    model.learn(total_timesteps=plan.total - plan.done,
+                                callback=_callbacks(plan, eval_env, progress, stop),
+                                reset_num_timesteps=plan.resume is None, progress_bar=False)
             finally:
                 checkpoint = _finish(plan, model, config, stop, wall)
-    finally:
-        logger.close()
-        for e in (env, eval_env):
-            if e is not None:
-                e.close()
+        finally:
+            logger.close()
+            _close(env, eval_env)
     if stop.signum is not None and checkpoint is not None:
         raise TrainStopped(stop.name, stop.signum, int(model.num_timesteps), plan.total,
                            checkpoint, plan.log_dir)
