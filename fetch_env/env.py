@@ -116,8 +116,9 @@ class _LRU(OrderedDict):
 
 _COMMON_DOC = """
     ## Action space
-    ``Box(-1, 1, (3,), float32)``, mapped linearly onto (values outside [-1, 1] are clipped;
-    NaN, infinities or another shape raise ``InvalidParameterError``):
+    ``Box(-1, 1, (3,), float32)``, mapped linearly onto (values outside [-1, 1] are clipped,
+    reported in ``info["clipped"]``; NaN, infinities or another shape raise
+    ``InvalidParameterError``):
 
     | index | name | low | high | unit | meaning |
     |---|---|---|---|---|---|
@@ -127,7 +128,7 @@ _COMMON_DOC = """
 
     ``action_to_physical(a)`` and ``physical_to_action(theta_d, omega, lift_speed)`` convert.
     theta_d is capped just short of the angle at which the half-spoons' tips meet for the
-    scene (``info["action_applied"]`` has what was run).
+    scene (``info["action_applied"]`` has what was run, ``info["clipped"]`` says so).
 
     ## Observation space
     ``Box(-{bound}, {bound}, ({n_obs},), float32)``. Feature ``i`` is ``value / scale`` (linear) or
@@ -198,7 +199,10 @@ _COMMON_DOC = """
     ## Info
     reset: ``true_params``, ``estimated_params`` (SI, None if not identified), ``probe_piece``,
     ``probe_warnings``, ``probe_calibration`` (the calibration applied to the estimates, or
-    None), ``pieces`` (scene description), ``hold``.
+    None), ``pieces`` (scene description), ``hold``, ``clipped`` (every value clipped, capped
+    or replaced: a list of ``{{"rule", "name", "given", "applied", "reason"}}``, empty when
+    none; each rule also warns once per env as ``fetch_env.ParameterClippedWarning``;
+    ``docs/clipping.md``).
     step: also ``reward_fetch``, ``reward_deformation``, ``reward_time``, ``fetch_rate``,
     ``fetch_rate_mass``, ``max_log_strain``, ``is_success`` (every piece fetched and
     LE_max <= safe_log_strain), ``passed_through`` (a piece passed through a blade or the
@@ -239,7 +243,7 @@ _COMMON_DOC = """
     | contact_timeconst | 0.01 | contacts' time constant [s] (see Geometry.contact_timeconst) |
     | fetch_timestep | 0.005 | the fetch's physics step [s], 0.001-0.01 (probes keep their own) |
     | fetch_impratio | None | fetch's friction impratio, 1-1e4 (None: 1000, 100 if several pieces) |
-    | render_mode | None | None, "rgb_array", "rgb_array_list" or "human" |
+    | render_mode | None | None, "rgb_array", "rgb_array_list" or "human" (needs a display) |
     | width | 480 | frame width [px] |
     | height | 360 | frame height [px] |
     | camera | "side" | camera name in the base scene ("side" or "front") |

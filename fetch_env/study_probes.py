@@ -127,7 +127,8 @@ def run_relaxation_probe(
     (``t``, ``theta``, ``M``, ``geometry``), ``action``, ``wall_sim``, ``max_log_strain``,
     ``estimate``, ``error`` and, for a fit with positive springs, the ``fitted`` moment curve.
     """
-    require(method in ("full", "three-step"), "method", method, "'full' or 'three-step'")
+    require(isinstance(method, str) and method in ("full", "three-step"), "method", method,
+            "'full' or 'three-step'")
     _check_noise(noise, seed)
     require_finite("clamp_weight", clamp_weight)
     require(0 < clamp_weight <= 1e6, "clamp_weight", clamp_weight, "in (0, 1e6]")
