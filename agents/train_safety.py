@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import io
 import json
 import os
@@ -38,8 +37,14 @@ from typing import Any
 
 from agents.atomic import write_atomic
 
+try:
+    import fcntl
+except ImportError:  # not POSIX: the lock falls back to the process id in the file
+    fcntl = None  # type: ignore[assignment]
+
 LOCK_NAME = "train.lock"
-STOP_SIGNALS: tuple[int, ...] = (signal.SIGTERM, signal.SIGHUP, signal.SIGINT)
+STOP_SIGNALS: tuple[int, ...] = tuple(
+    getattr(signal, name) for name in ("SIGTERM", "SIGHUP", "SIGINT") if hasattr(signal, name))
 BUFFER_FORMAT = "food-fetch replay buffer 1"
 BUFFER_ARRAYS: tuple[str, ...] = ("observations", "next_observations", "actions", "rewards",
                                   "dones", "timeouts")
@@ -87,6 +92,8 @@ def _pid_alive(pid: Any) -> bool:
 
 def _try_flock(fd: int) -> bool | None:
     """True: locked; False: another process holds it; None: this file system has no flock."""
+    if fcntl is None:
+        return None
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as exc:
