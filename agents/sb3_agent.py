@@ -169,7 +169,9 @@ def safe_custom_objects(data: dict[str, Any], algo: str, name: str, *,
     for key, default in NUMBERS.items():
         if key in data and _pickled(data[key]):
             hinted = _constant_hint(data[key])
-            custom[key] = hinted if hinted is not None else settings.get(key, default)
+            value = hinted if hinted is not None else settings.get(key, default)
+            # SAC reads [n, "step" | "episode"] (config.yml's form) only as a tuple
+            custom[key] = tuple(value) if isinstance(value, list) else value
     if not for_training and _pickled(data.get("action_noise")):
         custom["action_noise"] = None  # exploration noise: unused by predict()
     left = sorted(k for k, v in data.items() if _pickled(v) and k not in custom)
