@@ -7,6 +7,7 @@
 #
 #   scripts/train_ppo_block.sh                # SAC, out/sac_block
 #   ALGO=ppo STEPS=4000 scripts/train_ppo_block.sh
+#   OVERWRITE=1 scripts/train_ppo_block.sh   # train again into a folder that holds a model
 set -euo pipefail
 ALGO="${ALGO:-sac}"
 STEPS="${STEPS:-1500}"
@@ -16,7 +17,7 @@ EPISODES="${EPISODES:-100}"
 mkdir -p "$OUT"
 start=$(date +%s)
 food-fetch train --algo "$ALGO" --env FoodFetch-Block-v0 --timesteps "$STEPS" --seed "$SEED" \
-    --log-dir "$OUT" --no-progress
+    --log-dir "$OUT" --no-progress $([[ "${OVERWRITE:-0}" == 1 ]] && echo --overwrite)
 echo "training wall time: $(( $(date +%s) - start )) s"
 if [[ "${SKIP_EVAL:-0}" != 1 ]]; then
     food-fetch evaluate --agent "$OUT/model.zip" --agent model-based --agent study \
