@@ -311,6 +311,25 @@ def _run_in_pools(tasks: Sequence[Task], workers: int,
                            f"of {len(tasks)} task(s) unfinished") from None
 
 
+def _forget_a_dead_tracker() -> None:
+    """If multiprocessing's resource tracker was killed during the run, stop telling it
+    about semaphores: its relaunch at exit would print a KeyError traceback for every
+    semaphore the dead one knew.  Called as a pool closes, when no worker is started any
+    more: this process unlinks its semaphores itself as they are freed or it exits
+    (``SemLock._cleanup``), so nothing leaks."""
+    from multiprocessing import resource_tracker
+
+    tracker = getattr(resource_tracker, "_resource_tracker", None)
+    alive = getattr(tracker, "_check_alive", None)
+    if alive is None or getattr(tracker, "_fd", None) is None or alive():
+        return
+
+    def ignore(_name: str, _rtype: str) -> None:
+        return None
+
+    resource_tracker.register = resource_tracker.unregister = ignore
+
+
 def _run_pool(pending: dict[int, Task], workers: int,
               collect: Callable[[int, dict[str, Any]], None]) -> None:
     """Run ``pending`` (index -> task) on one fresh pool, removing each as it finishes."""
@@ -337,6 +356,7 @@ def _run_pool(pending: dict[int, Task], workers: int,
             collect(i, rec)
         clean = True
     finally:
+        _forget_a_dead_tracker()  # before the pool's queues are freed and unregistered
         _close_pool(pool, clean)
 
 

@@ -1,6 +1,6 @@
 """Faults injected into a running ``food-fetch evaluate`` (the real command, in a subprocess):
-SIGTERM, SIGHUP, a worker killed with SIGKILL once and twice, the output folder removed,
-a write to a full device.  Each ends with every finished episode kept, one line saying
+SIGTERM, SIGHUP, a worker killed with SIGKILL once and twice, the resource tracker killed,
+the output folder removed, a write to a full device.  Each ends with every finished episode kept, one line saying
 what happened, a conventional exit code, and no traceback, hang or leaked-semaphore warning;
 a stopped run resumed from its episode log gives the numbers of an uninterrupted one.
 
@@ -113,8 +113,8 @@ def _wait_for(log: Path, n: int, proc: subprocess.Popen[str]) -> None:
         time.sleep(0.02)
 
 
-def _workers(pid: int) -> list[int]:
-    """The pool's worker processes of ``pid`` (spawned; not the resource tracker)."""
+def _children(pid: int, marker: bytes) -> list[int]:
+    """The child processes of ``pid`` whose command line holds ``marker``."""
     out = []
     for task in Path(f"/proc/{pid}/task").iterdir():
         for child in (task / "children").read_text().split():
@@ -122,9 +122,14 @@ def _workers(pid: int) -> list[int]:
                 cmdline = Path(f"/proc/{child}/cmdline").read_bytes()
             except OSError:
                 continue
-            if b"spawn_main" in cmdline:
+            if marker in cmdline:
                 out.append(int(child))
     return out
+
+
+def _workers(pid: int) -> list[int]:
+    """The pool's worker processes of ``pid`` (spawned; not the resource tracker)."""
+    return _children(pid, b"spawn_main")
 
 
 def _key(r: dict[str, Any]) -> tuple[str, int]:
@@ -267,6 +272,24 @@ def test_a_worker_lost_twice_stops_with_one_line(tmp_path: Path,
     assert d["interrupted"] and d["episodes_finished"] == len(kept) >= 4
     assert sorted(map(_key, kept)) == sorted(map(_key, d["episodes_detail"]))
     _as_reference(kept, reference)
+
+
+@pytest.mark.slow
+def test_a_killed_resource_tracker_leaves_no_traceback(tmp_path: Path,
+                                                       reference: dict[str, Any]) -> None:
+    """multiprocessing's resource tracker killed mid-run: its relaunch at exit printed a
+    KeyError traceback per semaphore (exit code 0); now nothing is said and nothing leaks."""
+    proc = _start(_argv("--episodes", str(EPISODES // 2), "--workers", "2", "--json", "r.json",
+                        "--json-episodes"), tmp_path)
+    _wait_for(tmp_path / "r.episodes.jsonl", 4, proc)
+    (tracker,) = _children(proc.pid, b"resource_tracker")
+    os.kill(tracker, signal.SIGKILL)
+    _out, err = _finish(proc, TIMEOUT)
+    assert proc.returncode == 0, err
+    assert _lines(err) == [] and "Traceback" not in err and "resource_tracker" not in err, err
+    d = json.loads((tmp_path / "r.json").read_text())
+    assert d["episodes_finished"] == len(AGENTS) * (EPISODES // 2)
+    _as_reference(d["episodes_detail"], reference)
 
 
 # ------------------------------------------------------------------------------ failed writes
