@@ -3,7 +3,11 @@ intervals, regret against ``search``, CSV/JSON output and plots.
 
 Episode ``i`` of every agent uses the scene of ``env.reset(seed=seed + i)`` and the agent is
 seeded with ``seed + i`` too, so each (agent, episode) is an independent, reproducible work
-item: ``workers > 1`` runs them in a process pool and gives the same numbers as one worker.
+item: ``workers > 1`` runs them in a process pool and gives the same numbers as one worker,
+a stopped run can be resumed from the records that finished (:mod:`agents.episode_log`),
+and a worker that dies costs only its tasks, rerun once on a fresh pool.  Ctrl-C, SIGTERM
+and SIGHUP (under :class:`StopSignals`) stop a run with every finished record kept.  The
+intervals stay inside what each quantity can be (:data:`INTERVALS`).
 """
 
 from __future__ import annotations
