@@ -25,6 +25,9 @@ from typing import IO, Any
 
 from agents.atomic import write_atomic
 
+__all__ = ["FORMAT", "FORMAT_VERSION", "IDENTITY", "EpisodeLog", "LogError", "check_matches",
+           "file_digest", "food_fetch_version", "json_safe", "read_log", "restore_record"]
+
 FORMAT = "food-fetch evaluate episodes"
 FORMAT_VERSION = 1
 # The header's entries that decide an episode's numbers: a resumed run must match them all.
