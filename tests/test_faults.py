@@ -1,8 +1,9 @@
 """Faults injected into a running ``food-fetch evaluate`` (the real command, in a subprocess):
 SIGTERM, SIGHUP, a worker killed with SIGKILL once and twice, the resource tracker killed,
-the output folder removed, a write to a full device.  Each ends with every finished episode kept, one line saying
-what happened, a conventional exit code, and no traceback, hang or leaked-semaphore warning;
-a stopped run resumed from its episode log gives the numbers of an uninterrupted one.
+the output folder removed, a write to a full device.  Each ends with every finished episode
+kept, one line saying what happened, a conventional exit code, and no traceback, hang or
+leaked-semaphore warning; a stopped run resumed from its episode log gives the numbers of
+an uninterrupted one.
 
 Cheap settings: FoodFetch-Block-v0 with the oracle estimator (no probe simulations), the
 random and study agents, tens of episodes (~0.2 s each).  A ``reference`` run with one
@@ -99,9 +100,15 @@ def _one_line(err: str, fragment: str) -> str:
 
 
 def _logged(path: Path) -> list[dict[str, Any]]:
-    """The episode log's records (its header dropped)."""
-    lines = path.read_text().splitlines() if path.exists() else []
-    return [json.loads(line) for line in lines[1:] if line.strip()]
+    """The episode log's records (its header dropped; a line still being written, read
+    while the run goes on, left out: the final counts are checked against the JSON)."""
+    out = []
+    for line in (path.read_text().splitlines() if path.exists() else [])[1:]:
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue
+    return out
 
 
 def _wait_for(log: Path, n: int, proc: subprocess.Popen[str]) -> None:
