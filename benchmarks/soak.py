@@ -26,6 +26,7 @@ and at the end of each id, so a stopped run leaves a valid file with what finish
 from __future__ import annotations
 
 import argparse
+import ctypes
 import json
 import math
 import os
@@ -47,6 +48,15 @@ RSS_LIMIT_MIB = 20.0  # most growth of the median RSS, late window against early
 TIME_LIMIT = 0.10  # most relative growth of the median episode time
 EARLY = (0.10, 0.20)  # share of the run: episodes 100-200 of 1000
 LATE = (0.90, 1.00)  # episodes 900-1000 of 1000
+
+
+def malloc_trim() -> None:
+    """Return the C heap's free pages to the system (glibc), so that RSS shows what is in use
+    rather than what the allocator keeps; a no-op elsewhere."""
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
 
 
 def rss_mib() -> float:
@@ -121,7 +131,7 @@ def load_existing(path: Path) -> dict[str, Any]:
 
 
 def soak(env_id: str, episodes: int, seed: int, record: dict[str, Any], out: Path,
-         data: dict[str, Any], flush: int) -> dict[str, Any]:
+         data: dict[str, Any], flush: int, trim: bool = False) -> dict[str, Any]:
     """Run ``episodes`` episodes of ``env_id`` and fill ``record`` as they finish."""
     env = gym.make(env_id)
     rng = np.random.default_rng(seed)
@@ -135,6 +145,8 @@ def soak(env_id: str, episodes: int, seed: int, record: dict[str, Any], out: Pat
         env.reset(seed=seed + ep)
         _, _, _, _, info = env.step(rng.uniform(-1.0, 1.0, 3).astype(np.float32))
         wall.append(time.perf_counter() - t)
+        if trim:
+            malloc_trim()
         rss.append(rss_mib())
         errors += "error" in info
         if (ep + 1) % flush == 0 or ep + 1 == episodes:
@@ -162,6 +174,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0, help="first reset seed and action seed")
     p.add_argument("--flush", type=int, default=50, metavar="K",
                    help="rewrite the JSON every K episodes (default: 50)")
+    p.add_argument("--malloc-trim", action="store_true",
+                   help="call glibc's malloc_trim after every episode (untimed), so that RSS "
+                   "counts memory in use, not freed memory the allocator keeps: tells a leak "
+                   "from fragmentation")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="JSON",
                    help=f"results file (default: {DEFAULT_OUT.relative_to(ROOT)})")
     args = p.parse_args(argv)
@@ -175,8 +191,9 @@ def main(argv: list[str] | None = None) -> int:
                 windows={"early": list(EARLY), "late": list(LATE)},
                 command="python " + " ".join(["benchmarks/soak.py", *sys.argv[1:]]))
     for env_id in ids:
-        record = data["ids"][env_id] = {}
-        soak(env_id, args.episodes, args.seed, record, args.out, data, args.flush)
+        record = data["ids"][env_id] = {"malloc_trim": args.malloc_trim}
+        soak(env_id, args.episodes, args.seed, record, args.out, data, args.flush,
+             args.malloc_trim)
         s = record["summary"]
         print(f"{env_id}: RSS median {s['rss_median_early_mib']:.1f} -> "
               f"{s['rss_median_late_mib']:.1f} MiB ({s['rss_growth_mib']:+.1f} MiB, "
