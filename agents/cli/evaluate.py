@@ -487,7 +487,13 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     # A worker beyond one per task only costs a process start (MuJoCo, numpy imports).
     args.workers = max(1, min(args.workers, len(tasks)))
     with StopSignals() as stop:
-        log = _open_log(args, run)
+        try:
+            log = _open_log(args, run)
+        except KeyboardInterrupt as exc:  # StopRequested too: before any episode ran
+            signum = getattr(exc, "signum", 2)
+            print(f"food-fetch evaluate: {exc.args[0] if exc.args else 'SIGINT'} before any "
+                  "episode ran", file=sys.stderr)
+            return 128 + signum
         wall = _run_with_bar(args, run, tasks, log, stop)
         summary = summarize(run.records, agents)
         payload = _payload(args, run, summary, wall)
