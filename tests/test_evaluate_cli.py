@@ -27,7 +27,8 @@ ROOT = Path(__file__).resolve().parent.parent
 def test_help_is_clear(capsys: pytest.CaptureFixture[str]) -> None:
     assert_help_lists("evaluate", ("--agent", "--env", "--episodes", "--seed", "--workers",
                                    "--json", "--csv", "--video", "--plots", "--search-episodes",
-                                   "--env-kwargs", "95 %", "regret"), capsys)
+                                   "--env-kwargs", "95 %", "regret", "--episodes-log",
+                                   "--resume", "SIGTERM", "n too small"), capsys)
 
 
 @pytest.mark.parametrize("argv, fragment", [
@@ -52,6 +53,8 @@ def test_help_is_clear(capsys: pytest.CaptureFixture[str]) -> None:
     (["--env-kwargs", "foo"], "--env-kwargs: expected KEY=VALUE, got 'foo'"),
     (["--env-kwargs", "hold=1", "hold=2"], "--env-kwargs: hold given twice"),
     (["--env-kwargs", "render_mode=human"], "render_mode is not an evaluation setting"),
+    (["--json", "same.json", "--episodes-log", "same.json"], "--episodes-log must differ"),
+    (["--resume", "/nonexistent/x.jsonl"], "--resume: no such file"),
 ])
 def test_mistakes_are_one_line_and_exit_2(argv: list[str], fragment: str,
                                          monkeypatch: pytest.MonkeyPatch,
