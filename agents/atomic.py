@@ -2,8 +2,9 @@
 
 Every output file is first written to a hidden temporary file in the same folder (same
 file system, so the move is atomic) and then moved onto its name with ``os.replace``.  A
-run stopped mid-write, a full disk or a removed folder leaves the previous file (or none)
-and at most a ``.NAME.XXXXXXXX.part.EXT`` file, never a truncated ``NAME``.
+failed write (a full disk, a removed folder, an exception) leaves the previous file (or
+none) and removes the temporary one; a process killed mid-write leaves at most a hidden
+``.NAME.XXXXXXXX.part.EXT``.  Never a truncated ``NAME``.
 
 A path that exists and is not a regular file (a FIFO, a device), and any path under
 ``/dev`` or ``/proc`` (``/dev/stdout``, ``/dev/full``), is written as it is: it cannot be
