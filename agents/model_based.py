@@ -153,9 +153,14 @@ class ModelBasedAgent(Agent):
 
         # Clamp speed: keep the instantaneous moment L dx (K1 + K2 phi) below the stall.
         omega = c.omega_fast if self.time_weight > 0 else c.omega
+        stall = c.stall_margin * c.stall_moment
+        # Slowing down relaxes only the Maxwell arm: where the relaxed moment L dx K1 alone
+        # passes the stall, a slower clamp stalls all the same and, when time costs, only
+        # costs time.
+        hopeless = self.time_weight > 0 and L * dx * k1 > stall
         for _ in range(8):
             m_peak = L * dx * (k1 + k2 * _maxwell_share(theta / omega, tau1))
-            if m_peak <= c.stall_margin * c.stall_moment or omega <= c.omega_min:
+            if m_peak <= stall or omega <= c.omega_min or hopeless:
                 break
             omega = max(omega / 2.0, c.omega_min)
         olo, ohi = ACTION_RANGES["omega"]
