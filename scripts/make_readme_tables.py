@@ -78,11 +78,16 @@ def headroom_table(data: dict[str, Any]) -> str:
     first = next(iter(results.values()))
     n = first["agents"]["search"]["episodes"]
     seed = re.search(r"--seed (\d+)", first["command"])
+    meta = first["meta"]
+    runs = ", ".join(f"{env_id} at {r['meta']['commit']} ({r['meta']['wall_s']:.0f} s)"
+                     for env_id, r in results.items())
     return ("\n".join(rows) + f"\n\nMean reward [95 % interval] on {n} scenes per id, "
             f"reset(seed) from seed {seed.group(1) if seed else '?'} (never tuned on); "
             "regret: search less model-based, paired on the same scenes. Orderings: search "
             f"beats study by at least {data['margin']:g} and model-based beats random and study, "
-            "each with non-overlapping intervals. " + _footer(first["meta"]).lstrip("\n"))
+            f"each with non-overlapping intervals. {meta['machine']}, Python {meta['python']}, "
+            f"MuJoCo {meta['mujoco']}; {runs}: `python benchmarks/headroom.py --ids ID "
+            "--episodes 200 --seed 80000 --workers 2 --out docs/data/headroom.json`")
 
 
 def speed_table(data: dict[str, Any]) -> str:
