@@ -11,12 +11,18 @@ and random actions from a seeded generator; after every episode the resident set
 (``VmRSS`` of ``/proc/self/status``, or the peak from ``resource.getrusage`` where there is no
 ``/proc``) and the episode's wall time (reset and step) are recorded.
 
-Reported per id: the median RSS and the median episode time over an early window (episodes
-10 % to 20 % of the run: past the start, when the scene caches fill and the allocator warms up)
-and over the last 10 % (episodes 900-1000 of 1000), the growth between them in MiB and %, and
-whether they meet the limits a soak must meet (growth under ``RSS_LIMIT_MIB`` and episode time
-under ``TIME_LIMIT`` higher).  Single RSS readings vary with the scene (a diced mix's compiled
+Reported per id: the median RSS and the median episode time (wall, and the process's CPU
+time) over an early window (episodes 10 % to 20 % of the run: past the start, when the scene
+caches fill and the allocator warms up) and over the last 10 % (episodes 900-1000 of 1000),
+the growth between them in MiB and %, and whether they meet the limits a soak must meet
+(growth under ``RSS_LIMIT_MIB``, and the median CPU time per episode under ``TIME_LIMIT``
+higher: on a machine shared with other jobs the wall time follows their load, the CPU time
+what an episode costs).  Single RSS readings vary with the scene (a diced mix's compiled
 model is larger than a block's), which is why windows of medians are compared, not ends.
+
+At the end the early window's episodes run again (same seeds and actions): their CPU times
+against the first run's, episode by episode, tell a slowdown of the process from the spread
+between scenes.
 
 The JSON (default ``docs/data/soak.json``) is rewritten atomically every ``--flush`` episodes
 and at the end of each id, so a stopped run leaves a valid file with what finished (marked
@@ -77,14 +83,17 @@ def window(n: int, shares: tuple[float, float]) -> slice:
     return slice(lo, max(round(shares[1] * n), lo + 1))
 
 
-def summarize(rss: list[float], wall: list[float]) -> dict[str, Any]:
-    """Medians over the early and late windows, their growth, and the limits' verdicts."""
+def summarize(rss: list[float], wall: list[float], cpu: list[float]) -> dict[str, Any]:
+    """Medians over the early and late windows, their growth, and the limits' verdicts (the
+    time limit on CPU time, which other jobs on a shared machine do not inflate)."""
     n = len(rss)
     early, late = window(n, EARLY), window(n, LATE)
     r0, r1 = float(np.median(rss[early])), float(np.median(rss[late]))
     t0, t1 = float(np.median(wall[early])), float(np.median(wall[late]))
+    c0, c1 = float(np.median(cpu[early])), float(np.median(cpu[late]))
     growth_mib = r1 - r0
     time_change = t1 / t0 - 1.0 if t0 > 0 else math.nan
+    cpu_change = c1 / c0 - 1.0 if c0 > 0 else math.nan
     return {
         "episodes": n,
         "early_window": [early.start, early.stop], "late_window": [late.start, late.stop],
@@ -93,7 +102,9 @@ def summarize(rss: list[float], wall: list[float]) -> dict[str, Any]:
         "rss_min_mib": round(min(rss), 2), "rss_max_mib": round(max(rss), 2),
         "episode_s_median_early": round(t0, 4), "episode_s_median_late": round(t1, 4),
         "episode_time_change_pct": round(100 * time_change, 2),
-        "rss_ok": bool(growth_mib < RSS_LIMIT_MIB), "time_ok": bool(time_change < TIME_LIMIT),
+        "episode_cpu_s_median_early": round(c0, 4), "episode_cpu_s_median_late": round(c1, 4),
+        "episode_cpu_change_pct": round(100 * cpu_change, 2),
+        "rss_ok": bool(growth_mib < RSS_LIMIT_MIB), "time_ok": bool(cpu_change < TIME_LIMIT),
     }
 
 
@@ -137,14 +148,18 @@ def soak(env_id: str, episodes: int, seed: int, record: dict[str, Any], out: Pat
     rng = np.random.default_rng(seed)
     rss: list[float] = []
     wall: list[float] = []
+    cpu: list[float] = []
+    actions: list[np.ndarray] = []
     errors = 0
     load_start = os.getloadavg()[0]
     started = time.perf_counter()
     for ep in range(episodes):
-        t = time.perf_counter()
+        actions.append(rng.uniform(-1.0, 1.0, 3).astype(np.float32))
+        t, c = time.perf_counter(), time.process_time()
         env.reset(seed=seed + ep)
-        _, _, _, _, info = env.step(rng.uniform(-1.0, 1.0, 3).astype(np.float32))
+        _, _, _, _, info = env.step(actions[-1])
         wall.append(time.perf_counter() - t)
+        cpu.append(time.process_time() - c)
         if trim:
             malloc_trim()
         rss.append(rss_mib())
@@ -155,14 +170,40 @@ def soak(env_id: str, episodes: int, seed: int, record: dict[str, Any], out: Pat
                           load_average_now=round(os.getloadavg()[0], 2),
                           wall_s=round(time.perf_counter() - started, 1),
                           rss_mib=[round(v, 2) for v in rss],
-                          episode_s=[round(v, 4) for v in wall])
+                          episode_s=[round(v, 4) for v in wall],
+                          episode_cpu_s=[round(v, 4) for v in cpu])
             if ep + 1 >= 10:
-                record["summary"] = summarize(rss, wall)
+                record["summary"] = summarize(rss, wall, cpu)
             write_atomic(out, data)
             print(f"{env_id}: {ep + 1}/{episodes} episodes, RSS {rss[-1]:.1f} MiB, "
                   f"{np.median(wall[-flush:]):.3f} s/episode", flush=True)
+    record["replay"] = replay(env, seed, actions, cpu)
+    write_atomic(out, data)
     env.close()
     return record
+
+
+def replay(env: Any, seed: int, actions: list[np.ndarray], cpu: list[float]
+           ) -> dict[str, Any]:
+    """The early window's episodes run again at the end, same seeds and actions: identical
+    work, so their CPU times compare the process late in the run with the process early in
+    it, free of the scene-to-scene spread that windows of different episodes carry (a diced
+    episode's cost varies twofold with its pieces)."""
+    early = window(len(actions), EARLY)
+    again = []
+    for ep in range(early.start, early.stop):
+        c = time.process_time()
+        env.reset(seed=seed + ep)
+        env.step(actions[ep])
+        again.append(time.process_time() - c)
+    before = np.array(cpu[early])
+    ratio = float(np.median(np.array(again) / before))
+    return {"episodes": [early.start, early.stop],
+            "cpu_s_median_first": round(float(np.median(before)), 4),
+            "cpu_s_median_again": round(float(np.median(again)), 4),
+            "cpu_s_again": [round(v, 4) for v in again],
+            "median_paired_change_pct": round(100 * (ratio - 1.0), 2),
+            "time_ok": bool(ratio - 1.0 < TIME_LIMIT)}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -198,7 +239,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{env_id}: RSS median {s['rss_median_early_mib']:.1f} -> "
               f"{s['rss_median_late_mib']:.1f} MiB ({s['rss_growth_mib']:+.1f} MiB, "
               f"{s['rss_growth_pct']:+.1f} %), episode {s['episode_s_median_early']:.3f} -> "
-              f"{s['episode_s_median_late']:.3f} s ({s['episode_time_change_pct']:+.1f} %)")
+              f"{s['episode_s_median_late']:.3f} s ({s['episode_time_change_pct']:+.1f} %), CPU "
+              f"{s['episode_cpu_s_median_early']:.3f} -> {s['episode_cpu_s_median_late']:.3f} s "
+              f"({s['episode_cpu_change_pct']:+.1f} %); the early window run again at the "
+              f"end: CPU {record['replay']['median_paired_change_pct']:+.1f} % (paired median)")
     return 0
 
 
