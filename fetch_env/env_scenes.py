@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from fetch_env import food_space
-from fetch_env.errors import InvalidParameterError
+from fetch_env.errors import InvalidParameterError, require, require_pieces, require_type
 from fetch_env.layouts import SHAPES, Piece, diced_mix, grid, single_block, single_row, two_rows
 from fetch_env.materials import PRESETS, STUDY_LEVELS, Material
 
@@ -137,6 +137,10 @@ def sample_scene(layout: str, rng: np.random.Generator,
                  scenes: str = "study") -> tuple[Piece, ...]:
     """Draw a scene of ``layout`` from the documented ranges of ``scenes`` (the -v0 ids'
     "study" space or the -v1 ids' "wide" one), using only ``rng``."""
+    require(isinstance(layout, str) and layout in LAYOUTS, "layout", layout, f"one of {LAYOUTS}")
+    require_type("rng", rng, np.random.Generator, "a numpy.random.Generator")
+    require(isinstance(scenes, str) and scenes in SCENE_SPACES, "scenes", scenes,
+            f"one of {SCENE_SPACES}")
     if scenes == "wide":
         return sample_wide_scene(layout, rng)
     if scenes != "study":
@@ -185,7 +189,7 @@ SCENE_PRESETS: Mapping[str, Callable[[], tuple[Piece, ...]]] = {
 
 def preset_scene(name: str) -> tuple[Piece, ...]:
     """The pieces of a named preset; the error lists the valid names."""
-    if name not in SCENE_PRESETS:
+    if not isinstance(name, str) or name not in SCENE_PRESETS:
         raise InvalidParameterError(
             f"unknown scene preset {name!r}; choose from {', '.join(SCENE_PRESETS)}")
     return SCENE_PRESETS[name]()
@@ -204,6 +208,7 @@ def layout_features(pieces: tuple[Piece, ...]) -> dict[str, float]:
     the clamp (x) and along it (y); pieces that do not overlap in the other direction are
     not neighbours there.  With one piece both spacings are reported as ``NO_NEIGHBOUR``.
     """
+    require_pieces("pieces", pieces)
     ext = np.array([p.extents for p in pieces])
     xy = np.array([[p.x, p.y] for p in pieces])
     across, along = NO_NEIGHBOUR, NO_NEIGHBOUR

@@ -358,11 +358,7 @@ FETCH_ENV_FUNCTIONS = [
     *_public("fetch_env.render", ["EpisodeRenderer"]),
 ]
 # fetch_env.env_scenes belongs to the environments' scene code; its gaps, with reproducers:
-OTHERS_BUGS = {
-    "fetch_env.env_scenes.sample_scene": "sample_scene(np.zeros(2), 3) -> ValueError",
-    "fetch_env.env_scenes.preset_scene": "preset_scene(np.zeros(2)) -> TypeError (unhashable)",
-    "fetch_env.env_scenes.layout_features": "layout_features(-1.0) -> TypeError",
-}
+OTHERS_BUGS: dict[str, str] = {}
 SCENE_FUNCTIONS = _public("fetch_env.env_scenes", ["sample_scene", "preset_scene",
                                                    "layout_features"])
 
