@@ -9,7 +9,8 @@ JSON.  The sources (each written by the benchmark named in its ``meta.command``)
 
 * ``physics``: ``docs/data/readme_physics.json`` (``benchmarks/physics_checks.py``);
 * ``headroom``: ``docs/data/headroom.json`` (``benchmarks/headroom.py``);
-* ``speed``: ``docs/data/readme_speed.json`` (``benchmarks/speed_summary.py``).
+* ``speed``: ``docs/data/readme_speed.json`` (``benchmarks/speed_summary.py``);
+* ``soak``: ``docs/data/soak.json`` (``benchmarks/soak.py``).
 
 The estimator table (``<!-- estimator-table ... -->``) is ``scripts/make_validation_page.py``'s
 and is left alone here.
@@ -29,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 DATA = ROOT / "docs" / "data"
 SOURCES = {"physics": DATA / "readme_physics.json", "headroom": DATA / "headroom.json",
-           "speed": DATA / "readme_speed.json"}
+           "speed": DATA / "readme_speed.json", "soak": DATA / "soak.json"}
 HEADROOM_AGENTS = ("random", "study", "model-based", "search", "ppo", "sac")
 
 
@@ -110,8 +111,25 @@ def speed_table(data: dict[str, Any]) -> str:
             f"{load} (wall figures drop on a busy machine); " + _footer(meta).lstrip("\n"))
 
 
+def soak_table(data: dict[str, Any]) -> str:
+    rows = ["| id | episodes | memory, early -> late | CPU per episode | early ones rerun |",
+            "|---|---|---|---|---|"]
+    for env_id, run in data["ids"].items():
+        s, again = run["summary"], run["replay"]
+        rows.append(f"| {env_id} | {s['episodes']} | {s['rss_median_early_mib']:.1f} -> "
+                    f"{s['rss_median_late_mib']:.1f} MiB | "
+                    f"{s['episode_cpu_s_median_early']:.3f} -> "
+                    f"{s['episode_cpu_s_median_late']:.3f} s | "
+                    f"{again['median_paired_change_pct']:+.1f} % |")
+    m = data["machine"]
+    return ("\n".join(rows) + "\n\nMedians over the second and last tenth of the episodes "
+            "of one process (the windows' scenes differ; the last column reruns the early "
+            f"episodes at the end); {m['machine']}, busy: `python benchmarks/soak.py --env ID`")
+
+
 TABLES: dict[str, Callable[[dict[str, Any]], str]] = {
-    "physics": physics_table, "headroom": headroom_table, "speed": speed_table}
+    "physics": physics_table, "headroom": headroom_table, "speed": speed_table,
+    "soak": soak_table}
 
 
 def render(name: str) -> str:
