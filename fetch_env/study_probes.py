@@ -60,7 +60,9 @@ def relaxation_traces(result: SimResult) -> tuple[np.ndarray, np.ndarray, np.nda
                                                   ClampGeometry]:
     """``(t, theta, M, geometry)`` of a relaxation run from the clamp start on: time from the
     clamp start, the measured hinge angle and the moment averaged over both half-spoons."""
-    require_type("result", result, SimResult, "a SimResult of the relaxation experiment")
+    # Duck-typed: a relaxation run read back from `simulate --json` has the same three parts.
+    require(all(hasattr(result, a) for a in ("traces", "extra", "geometry")), "result",
+            result, "a SimResult of the relaxation experiment (traces, extra, geometry)")
     tr = result.traces
     t0 = float(result.extra.get("t_clamp_start", 0.0))
     sel = tr["t"] >= t0
