@@ -290,4 +290,5 @@ def test_sac_a_few_hundred_steps(tmp_path: Path, capsys: pytest.CaptureFixture[s
                          str(tmp_path), "--no-progress", "--hyperparams", "learning_starts=50",
                          "eval_freq=150", "n_eval_episodes=5", "checkpoint_freq=150"], capsys)
     assert code == 0, err
-    assert (tmp_path / "checkpoints/rl_model_replay_buffer_300_steps.pkl").exists()
+    # the replay buffer as npz, read back without pickle (agents.train_safety)
+    assert (tmp_path / "checkpoints/rl_model_replay_buffer_300_steps.npz").exists()
