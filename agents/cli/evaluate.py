@@ -467,6 +467,16 @@ def _finish(args: argparse.Namespace, run: _Run, writes: _Writes, log: Any,
     return code
 
 
+def _note_caps(args: argparse.Namespace, n_tasks: int) -> None:
+    """Say on stderr where a setting is lowered to what the run can use (no number changes)."""
+    if args.workers > max(n_tasks, 1):
+        print(f"food-fetch evaluate: note: --workers {args.workers} lowered to "
+              f"{max(n_tasks, 1)}, one per task to run", file=sys.stderr)
+    if args.search_episodes and args.search_episodes > args.episodes:
+        print(f"food-fetch evaluate: note: --search-episodes {args.search_episodes} lowered "
+              f"to --episodes {args.episodes}", file=sys.stderr)
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     require_extra("evaluate", "figures")
     from agents.evaluate import StopSignals, summarize
@@ -485,6 +495,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     done = {(r["agent"], r["episode"]) for r in run.logged}
     tasks = [t for t in run.plan if (t.agent, t.episode) not in done]
     # A worker beyond one per task only costs a process start (MuJoCo, numpy imports).
+    _note_caps(args, len(tasks))
     args.workers = max(1, min(args.workers, len(tasks)))
     with StopSignals() as stop:
         try:
@@ -523,8 +534,8 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    "not started); any K gives the same numbers (default: 1); a worker that "
                    "dies has its tasks rerun once on a fresh pool")
     p.add_argument("--search-episodes", type=positive_int, default=None, metavar="N",
-                   help="run 'search' (~20 simulations per scene) on the first N scenes "
-                   "only; regret is then paired on those (default: all)")
+                   help="run 'search' (~25 simulations per scene) on the first N scenes "
+                   "only, at most --episodes; regret is then paired on those (default: all)")
     p.add_argument("--json", type=writable, default=None, metavar="FILE",
                    help="write the summary (and settings, machine) as JSON")
     p.add_argument("--episodes-log", type=writable, default=None, metavar="FILE",
