@@ -35,7 +35,8 @@ class AgentSpecError(Exception):
 
 
 def make_agent(spec: str, env_id: str | None = None) -> Agent:
-    """An agent from a name in ``AGENT_NAMES`` or the path of a saved SB3 model (.zip)."""
+    """An agent from a name in ``AGENT_NAMES``, the path of a saved SB3 model (.zip) or of
+    a policy exported by ``train --backend rllib`` (``policy.npz``, or its folder)."""
     if spec == "random":
         from agents.baselines import RandomAgent
 
@@ -53,10 +54,18 @@ def make_agent(spec: str, env_id: str | None = None) -> Agent:
         from agents.search import SearchAgent
 
         return SearchAgent()
-    looks_like_path = spec.endswith(".zip") or "/" in spec or Path(spec).exists()
+    looks_like_path = spec.endswith((".zip", ".npz")) or "/" in spec or Path(spec).exists()
     if not looks_like_path:
         raise AgentSpecError(f"unknown agent {spec!r}; choose from {', '.join(AGENT_NAMES)} "
-                             "or give the path of a saved model (.zip)")
+                             "or give the path of a saved model (.zip, or an RLlib "
+                             "policy.npz)")
+    if spec.endswith(".npz") or (Path(spec) / "policy.npz").is_file():
+        from agents.rllib_policy import PolicyFileError, RLlibPolicyAgent
+
+        try:
+            return RLlibPolicyAgent(spec)
+        except PolicyFileError as exc:
+            raise AgentSpecError(str(exc)) from None
     from agents.sb3_agent import ModelLoadError, SB3Agent
 
     try:
@@ -239,18 +248,27 @@ class _WorkersLost(Exception):
 
 
 class _EpisodeFailed(Exception):
-    def __init__(self, task: Task, exc: BaseException) -> None:
-        line = str(exc).splitlines()[0] if str(exc) else ""
+    def __init__(self, task: Task, exc: BaseException | str) -> None:
+        if isinstance(exc, BaseException):
+            line = str(exc).splitlines()[0] if str(exc) else ""
+            exc = f"{type(exc).__name__}{': ' + line if line else ''}"
         super().__init__(f"{task.agent!r} episode {task.episode} (seed {task.seed}) failed: "
-                         f"{type(exc).__name__}{': ' + line if line else ''}")
+                         f"{exc}")
+
+    @classmethod
+    def from_line(cls, task: Task, line: str) -> _EpisodeFailed:
+        """From ``"TypeName: message"`` (an episode that raised on another machine)."""
+        return cls(task, line)
 
 
 # ------------------------------------------------------------------------------ running
 def run_tasks(tasks: Sequence[Task], workers: int = 1,
               on_result: Callable[[dict[str, Any]], None] | None = None,
               stop: StopSignals | None = None,
-              notify: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
-    """Run the tasks (in a process pool when ``workers > 1``); results in task order.
+              notify: Callable[[str], None] | None = None, ray_address: str | None = None,
+              ray_batch: int | None = None) -> list[dict[str, Any]]:
+    """Run the tasks (in a process pool when ``workers > 1``, as Ray tasks when
+    ``ray_address`` is given: see :mod:`agents.ray_runner`); results in task order.
 
     ``on_result`` sees each record as it finishes.  A stop (Ctrl-C, or SIGTERM/SIGHUP under
     ``stop``), a worker process lost twice (the first loss reruns the unfinished tasks on a
@@ -266,7 +284,14 @@ def run_tasks(tasks: Sequence[Task], workers: int = 1,
 
     workers = min(workers, len(tasks))  # an idle worker would only cost its start-up
     try:
-        if workers <= 1:
+        if ray_address is not None:
+            from agents.ray_runner import ClusterLost, run_on_ray
+
+            try:
+                run_on_ray(tasks, collect, ray_address, max(workers, 1), ray_batch)
+            except ClusterLost as exc:
+                raise _WorkersLost(str(exc)) from None
+        elif workers <= 1:
             for i, task in enumerate(tasks):
                 try:
                     rec = run_episode(task)

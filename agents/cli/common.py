@@ -24,6 +24,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "train": ("stable_baselines3", "torch", "yaml", "tqdm"),
     "zoo": ("rl_zoo3",),
     "datasets": ("minari", "h5py", "PIL"),
+    "ray": ("ray",),
 }
 
 

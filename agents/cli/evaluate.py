@@ -94,7 +94,8 @@ def _payload(args: argparse.Namespace, run: _Run, summary: dict[str, Any],
     return {
         "env": args.env, "env_kwargs": run.env_kwargs,
         "episodes": args.episodes, "seed": args.seed,
-        "workers": args.workers, "search_episodes": args.search_episodes,
+        "workers": args.workers, "ray": args.ray, "ray_batch": args.ray_batch,
+        "search_episodes": args.search_episodes,
         "interrupted": run.stopped is not None,
         "stopped": run.stopped.reason if run.stopped is not None else None,
         "episodes_finished": len(run.records), "wall_time_s": round(wall, 2),
@@ -145,6 +146,9 @@ def _checked_agents(args: argparse.Namespace) -> tuple[list[str], dict[str, Any]
             if hasattr(agent, "model"):
                 agent.model  # noqa: B018 (load now: a corrupt file is a usage error)
                 files[spec] = file_digest(getattr(agent, "path", spec))
+            elif hasattr(agent, "net"):  # an RLlib policy: its weights file
+                path = Path(spec)
+                files[spec] = file_digest(path / "policy.npz" if path.is_dir() else path)
             describe[spec] = agent.describe()
         except AgentSpecError as exc:
             raise UsageError(f"food-fetch evaluate: {exc}") from None
@@ -248,9 +252,13 @@ def _run_with_bar(args: argparse.Namespace, run: _Run, tasks: list[Any], log: An
     wall = time.perf_counter()
     try:
         new = run_tasks(tasks, workers=args.workers, on_result=on_result, stop=stop,
-                        notify=notify)
+                        notify=notify, ray_address=args.ray, ray_batch=args.ray_batch)
     except EvaluationInterrupted as exc:
         new, run.stopped = exc.results, exc
+    except RuntimeError as exc:  # agents.ray_runner.RaySetupError: before any episode ran
+        if type(exc).__name__ != "RaySetupError":
+            raise
+        raise UsageError(f"food-fetch evaluate: {exc}") from None
     finally:
         stop.armed = False  # from here a signal is remembered: the results get written
         bar.close()
@@ -270,7 +278,8 @@ def _print_summary(args: argparse.Namespace, run: _Run, summary: Any, wall: floa
     print(f"{args.env}: {args.episodes} episodes from seed {args.seed}"
           + (f" (search on the first {run.n_search})" if REFERENCE in run.agents
              and run.n_search < args.episodes else "")
-          + f", {args.workers} worker(s), {wall:.1f} s"
+          + (f", Ray at {args.ray}" if args.ray else f", {args.workers} worker(s)")
+          + f", {wall:.1f} s"
           + (f" ({run.from_log} episode(s) from {args.resume})" if args.resume else "")
           + ("  [INTERRUPTED: partial results]" if run.stopped is not None else ""))
     print(TABLE_LEGEND)
@@ -477,6 +486,24 @@ def _note_caps(args: argparse.Namespace, n_tasks: int) -> None:
               f"to --episodes {args.episodes}", file=sys.stderr)
 
 
+def _check_ray(args: argparse.Namespace) -> None:
+    """``--ray``: the extra installed, the address well formed and answering (one line)."""
+    if args.ray is None:
+        if args.ray_batch is not None:
+            raise UsageError("food-fetch evaluate: --ray-batch needs --ray")
+        return
+    require_extra("evaluate --ray", "ray")
+    from agents.ray_runner import RaySetupError, _reachable, check_address
+
+    try:
+        args.ray = check_address(args.ray)
+    except RaySetupError as exc:
+        raise UsageError(f"food-fetch evaluate: {exc}") from None
+    why = _reachable(args.ray)
+    if why is not None:
+        raise UsageError(f"food-fetch evaluate: no Ray cluster answers at {args.ray!r} ({why})")
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     require_extra("evaluate", "figures")
     from agents.evaluate import StopSignals, summarize
@@ -486,6 +513,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.env not in ids:
         raise UsageError(f"food-fetch evaluate: unknown environment id {args.env!r}; "
                          f"choose from {', '.join(ids)}")
+    _check_ray(args)
     datasets = _checked_datasets(args)
     env_kwargs = _check_env_kwargs(args.env, args.env_kwargs)
     agents, describe, files = _checked_agents(args)
@@ -519,8 +547,8 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    help="agent to evaluate; repeat for a side-by-side table (default: random, "
                    "study, model-based)")
     p.add_argument("--env", default="FoodFetch-Block-v0", metavar="ID",
-                   help="environment id: FoodFetch-Block-v0, -Row-v0, -TwoRows-v0 or "
-                   "-Diced-v0 (default: FoodFetch-Block-v0)")
+                   help="environment id: FoodFetch-{Block,Row,TwoRows,Diced}-v0 or -v1 "
+                   "(default: FoodFetch-Block-v0)")
     p.add_argument("--env-kwargs", type=_env_kwarg, nargs="+", default=[], metavar="KEY=VALUE",
                    help="keyword arguments of the environment, values read as JSON where "
                    "they are JSON, else as strings (e.g. fetch_impratio=1000 "
@@ -533,6 +561,15 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    help="worker processes, at most one per (agent, episode) task (more are "
                    "not started); any K gives the same numbers (default: 1); a worker that "
                    "dies has its tasks rerun once on a fresh pool")
+    p.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",
+                   help="run the episodes as Ray tasks (the ray extra): alone, on a local Ray "
+                   "instance of --workers CPUs; with ADDRESS ('auto', HOST:PORT of a head, "
+                   "ray://HOST:PORT), on that cluster, every node having food-fetch "
+                   "installed. Same numbers as --workers 1; search also spreads each "
+                   "scene's simulations over the cluster")
+    p.add_argument("--ray-batch", type=positive_int, default=None, metavar="N",
+                   help="with --ray, episodes per Ray task (default: about four tasks per "
+                   "cluster CPU, at most 8 episodes each)")
     p.add_argument("--search-episodes", type=positive_int, default=None, metavar="N",
                    help="run 'search' (~25 simulations per scene) on the first N scenes "
                    "only, at most --episodes; regret is then paired on those (default: all)")

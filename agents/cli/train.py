@@ -7,7 +7,7 @@ from pathlib import Path
 
 from agents.cli.common import UsageError, integer, positive_int, require_extra, seed
 
-HELP = "train PPO or SAC on a FoodFetch environment (Stable-Baselines3)"
+HELP = "train PPO or SAC on a FoodFetch environment (Stable-Baselines3 or RLlib)"
 DESCRIPTION = ("Train PPO or SAC with the hyperparameters shipped for the environment "
                "id (agents/hyperparams/<algo>.yml, which python -m rl_zoo3.train --conf-file "
                "reads as they are). Writes "
@@ -18,8 +18,9 @@ DESCRIPTION = ("Train PPO or SAC with the hyperparameters shipped for the enviro
                "--overwrite replaces it. SIGTERM, SIGHUP or Ctrl-C stop training at the next "
                "step, save a checkpoint (SAC: with its replay buffer) and print the --resume "
                "command that continues it; the exit code is 128 + the signal's number. Needs "
-               "the train extra (stable-baselines3, torch).")
-ENV_HELP = "FoodFetch-Block-v0, -Row-v0, -TwoRows-v0 or -Diced-v0"
+               "the train extra (stable-baselines3, torch). --backend rllib trains with RLlib "
+               "instead, over Ray env runners (the ray extra).")
+ENV_HELP = "FoodFetch-{Block,Row,TwoRows,Diced}-v0 or -v1"
 
 
 def _log_dir(text: str) -> Path:
@@ -36,7 +37,54 @@ def _log_dir(text: str) -> Path:
     return p
 
 
+# Options of the SB3 backend that the RLlib one does not take (refused, one line).
+SB3_ONLY = ("resume", "hyperparams", "eval_freq", "eval_episodes", "no_eval",
+            "trust_replay_buffer", "verbose")
+
+
+def _cmd_train_rllib(args: argparse.Namespace) -> int:
+    """``--backend rllib``: checked, trained, the policy exported (agents.rllib_train)."""
+    import sys
+
+    require_extra("train --backend rllib", "ray")
+    given = [o for o in SB3_ONLY if getattr(args, o) not in (None, False, [], 0)]
+    if given:
+        raise UsageError(f"food-fetch train: --{given[0].replace('_', '-')} is not taken with "
+                         "--backend rllib")
+    from agents.ray_runner import RaySetupError, check_address
+    from agents.rllib_train import RLlibPlan, RLlibStopped, load_settings, train_rllib
+    from agents.train import TrainError
+
+    algo = args.algo or "ppo"
+    try:
+        address = check_address(args.ray)
+        settings = load_settings(algo, args.env, Path(args.hyperparams_file)
+                                 if args.hyperparams_file else None)
+        timesteps = args.timesteps or int(settings.get("n_timesteps", 1000))
+        save_freq = args.save_freq if args.save_freq is not None else max(timesteps // 4, 1)
+        plan = RLlibPlan(algo, args.env, timesteps, args.seed, args.log_dir, args.env_runners,
+                         address, save_freq, settings)
+        policy = train_rllib(plan, overwrite=args.overwrite, progress=not args.no_progress,
+                             command=["food-fetch", *sys.argv[1:]])
+    except (TrainError, RaySetupError) as exc:
+        raise UsageError(f"food-fetch train: {exc}") from None
+    except RLlibStopped as exc:
+        print(f"food-fetch train: {exc.one_line()}", file=sys.stderr)
+        return 128 + exc.signum
+    print(f"saved policy      {policy}")
+    print(f"checkpoints       {args.log_dir / 'checkpoints'}")
+    print(f"evaluate with     food-fetch evaluate --agent {policy} --env {args.env}")
+    return 0
+
+
 def cmd_train(args: argparse.Namespace) -> int:
+    if args.env not in _env_ids():
+        raise UsageError(f"food-fetch train: unknown environment id {args.env!r}; choose "
+                         f"from {', '.join(_env_ids())}")
+    if args.backend == "rllib":
+        return _cmd_train_rllib(args)
+    if args.env_runners != 1 or args.ray != "local":
+        raise UsageError("food-fetch train: --env-runners and --ray need --backend rllib")
     require_extra("train", "train")
     import sys
 
@@ -64,8 +112,27 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _env_ids() -> list[str]:
+    from fetch_env import ENV_IDS
+
+    return sorted(ENV_IDS)
+
+
 def add_options(p: argparse.ArgumentParser) -> None:
     """The options of ``food-fetch train``."""
+    p.add_argument("--backend", choices=("sb3", "rllib"), default="sb3",
+                   help="sb3: Stable-Baselines3 in this process (default); rllib: RLlib with "
+                   "--env-runners Ray actors collecting fetches, on a local Ray instance or "
+                   "the cluster at --ray (the ray extra). RLlib writes policy.npz (what "
+                   "evaluate --agent takes), RLlib checkpoints under checkpoints/, "
+                   "progress.csv and config.yml; settings from "
+                   "agents/hyperparams/rllib_<algo>.yml")
+    p.add_argument("--env-runners", type=positive_int, default=1, metavar="N",
+                   help="with --backend rllib: env runners, each a Ray actor on one CPU "
+                   "(default: 1)")
+    p.add_argument("--ray", default="local", metavar="ADDRESS",
+                   help="with --backend rllib: 'local' (a Ray instance of --env-runners + 1 "
+                   "CPUs, the default), 'auto', HOST:PORT or ray://HOST:PORT")
     p.add_argument("--algo", choices=("ppo", "sac"), default=None,
                    help="algorithm (default: ppo; with --resume, the checkpoint's)")
     p.add_argument("--env", default="FoodFetch-Block-v0", metavar="ID",
