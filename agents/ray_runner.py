@@ -34,7 +34,8 @@ _RAY_ENV = {"RAY_gcs_rpc_server_reconnect_timeout_s": "3600"}
 # A local instance's workers run at the command's own priority, as --workers' processes do
 # (Ray's default, nice 15, starves them on a machine busy with anything else: measured 20x
 # slower Block episodes beside two training runs on 2 cores).
-_LOCAL_ENV = {"RAY_worker_niceness": "0"}
+# No usage statistics sent from an instance this command starts (Ray's own opt-out).
+_LOCAL_ENV = {"RAY_worker_niceness": "0", "RAY_USAGE_STATS_ENABLED": "0"}
 
 
 class RaySetupError(RuntimeError):
@@ -88,10 +89,9 @@ def connected(address: str, num_cpus: int) -> Iterator[Any]:
     if started:
         kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False,
                                   "configure_logging": False}
+        kwargs["address"] = address  # "local": always a new instance, whatever RAY_ADDRESS
         if address == LOCAL:
             kwargs["num_cpus"] = num_cpus
-        else:
-            kwargs["address"] = address
         handlers = _stop_handlers()
         try:
             ray.init(**kwargs)

@@ -272,3 +272,17 @@ def test_a_cluster_that_goes_away_ends_the_run_with_one_line_and_keeps_what_fini
     kept = log.read_text().splitlines()[1:]
     part = json.loads((tmp_path / "c.json").read_text())
     assert part["interrupted"] and part["episodes_finished"] == len(kept) >= 3
+
+
+def test_the_docs_scaling_table_is_the_committed_benchmark() -> None:
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import scaling
+
+    data = json.loads((ROOT / "docs/data/scaling.json").read_text())
+    page = (ROOT / "docs/scaling.md").read_text()
+    table = page.split(scaling.BEGIN)[1].split(scaling.END)[0].strip()
+    assert table == scaling.render(data)
+    # 2 workers, and Ray with 2 CPUs and batched tasks, run faster than 1 (on 2 cores).
+    assert data["workers"]["2"]["episodes_per_s"] > 1.2 * data["workers"]["1"]["episodes_per_s"]
+    assert (data["ray"]["2"]["batch_4"]["episodes_per_s"]
+            > 1.2 * data["ray"]["1"]["batch_4"]["episodes_per_s"])
