@@ -1,7 +1,8 @@
 """``evaluate --ray`` and ``train --backend rllib`` on a local Ray instance started by the
 test (2 CPUs, no network): the same numbers as ``--workers 1``, a stop that keeps what
 finished, one line for a bad address, an RLlib run whose exported policy evaluates and
-matches the module it came from.  Skipped where the ``ray`` extra is not installed.
+matches the module it came from.  Skipped where the ``ray`` extra is not installed; the
+RLlib tests where the ``rllib`` extra is not.
 
 Cheap settings: FoodFetch-Block-v0 with the oracle estimator (no probe simulations) for the
 stop and equality runs; the search agent on one scene to check its simulations spread over
@@ -10,6 +11,7 @@ Ray give the serial search's choice.
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import signal
@@ -23,7 +25,11 @@ import numpy as np
 import pytest
 
 pytest.importorskip("ray")
-pytest.importorskip("ray.rllib")
+# The RLlib tests need the rllib extra (dm_tree is installed by it alone); .ci/run runs them
+# in a venv of their own, as RLlib pins gymnasium.
+needs_rllib = pytest.mark.skipif(
+    importlib.util.find_spec("tree") is None or importlib.util.find_spec("lz4") is None,
+    reason="needs the rllib extra: pip install -e '.[rllib]'")
 
 ROOT = Path(__file__).resolve().parent.parent
 TIMEOUT = 300  # a Ray start is ~5-10 s, a worker's imports a few more: beyond this, a hang
@@ -129,6 +135,7 @@ TINY = """\
 """
 
 
+@needs_rllib
 def test_rllib_ppo_trains_checkpoints_and_its_policy_evaluates(tmp_path: Path) -> None:
     env_id = "FoodFetch-Block-v0"
     (tmp_path / "tiny.yml").write_text(TINY.format(env=env_id))
@@ -175,6 +182,7 @@ def test_rllib_ppo_trains_checkpoints_and_its_policy_evaluates(tmp_path: Path) -
     assert (run / "policy.npz").read_bytes() == before
 
 
+@needs_rllib
 @pytest.mark.parametrize(("extra", "message"), [
     (["--resume", "x.zip"], "--resume is not taken with --backend rllib"),
     (["--env-runners", "2"], "--env-runners and --ray need --backend rllib"),
@@ -192,6 +200,7 @@ def test_bad_rllib_requests_are_one_line(tmp_path: Path, extra: list[str],
     assert not (tmp_path / "r" / "policy.npz").exists()
 
 
+@needs_rllib
 def test_sigterm_stops_rllib_training_with_a_checkpoint_and_the_policy(tmp_path: Path) -> None:
     env_id = "FoodFetch-Block-v0"
     (tmp_path / "tiny.yml").write_text(TINY.format(env=env_id))

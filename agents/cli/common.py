@@ -25,6 +25,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "zoo": ("rl_zoo3",),
     "datasets": ("minari", "h5py", "PIL"),
     "ray": ("ray",),
+    "rllib": ("ray", "torch", "tree", "lz4"),  # dm_tree, lz4: RLlib's own dependencies
 }
 
 

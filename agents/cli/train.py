@@ -19,7 +19,7 @@ DESCRIPTION = ("Train PPO or SAC with the hyperparameters shipped for the enviro
                "step, save a checkpoint (SAC: with its replay buffer) and print the --resume "
                "command that continues it; the exit code is 128 + the signal's number. Needs "
                "the train extra (stable-baselines3, torch). --backend rllib trains with RLlib "
-               "instead, over Ray env runners (the ray extra).")
+               "instead, over Ray env runners (the rllib extra).")
 ENV_HELP = "FoodFetch-{Block,Row,TwoRows,Diced}-v0 or -v1"
 
 
@@ -46,7 +46,7 @@ def _cmd_train_rllib(args: argparse.Namespace) -> int:
     """``--backend rllib``: checked, trained, the policy exported (agents.rllib_train)."""
     import sys
 
-    require_extra("train --backend rllib", "ray")
+    require_extra("train --backend rllib", "rllib")
     given = [o for o in SB3_ONLY if getattr(args, o) not in (None, False, [], 0)]
     if given:
         raise UsageError(f"food-fetch train: --{given[0].replace('_', '-')} is not taken with "
@@ -123,7 +123,7 @@ def add_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--backend", choices=("sb3", "rllib"), default="sb3",
                    help="sb3: Stable-Baselines3 in this process (default); rllib: RLlib with "
                    "--env-runners Ray actors collecting fetches, on a local Ray instance or "
-                   "the cluster at --ray (the ray extra). RLlib writes policy.npz (what "
+                   "the cluster at --ray (the rllib extra). RLlib writes policy.npz (what "
                    "evaluate --agent takes), RLlib checkpoints under checkpoints/, "
                    "progress.csv and config.yml; settings from "
                    "agents/hyperparams/rllib_<algo>.yml")

@@ -1,0 +1,62 @@
+"""Put a trained agent's held-out evaluation beside the baselines in docs/data/headroom.json.
+
+    python scripts/add_trained_agent.py out/sac_FoodFetch-Block-v1 --algo sac
+
+reads what ``scripts/train_agent.sh`` left in the run folder (``heldout.json``: the model on
+the 200 headroom scenes; ``config.yml``: the training budget; ``train_wall.txt``: its wall
+time) and stores the agent's summary under ``results[ID]["agents"][ALGO]`` and how it was
+trained under ``results[ID]["trained"][ALGO]``.  Refused unless the evaluation used the same
+scenes (environment id, seed, episodes, env kwargs) as the id's headroom run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+HEADROOM = ROOT / "docs" / "data" / "headroom.json"
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("run", type=Path, help="the folder scripts/train_agent.sh wrote")
+    p.add_argument("--algo", choices=("ppo", "sac"), required=True)
+    p.add_argument("--headroom", type=Path, default=HEADROOM)
+    args = p.parse_args()
+    heldout = json.loads((args.run / "heldout.json").read_text())
+    config = yaml.safe_load((args.run / "config.yml").read_text())
+    data = json.loads(args.headroom.read_text())
+    env_id = heldout["env"]
+    if env_id not in data["results"]:
+        sys.exit(f"{args.headroom}: no headroom run of {env_id}")
+    base = data["results"][env_id]
+    seed = re.search(r"--seed (\d+)", base["command"])
+    episodes = base["agents"]["study"]["episodes"]
+    if (heldout["seed"], heldout["episodes"], heldout["env_kwargs"]) != (
+            int(seed.group(1)) if seed else None, episodes, {}):
+        sys.exit(f"{args.run}/heldout.json is not on the headroom scenes of {env_id} "
+                 f"(seed {seed.group(1) if seed else '?'}, {episodes} episodes, default env)")
+    (summary,) = heldout["agents"].values()
+    base["agents"][args.algo] = summary
+    wall = (args.run / "train_wall.txt").read_text().strip()
+    base.setdefault("trained", {})[args.algo] = {
+        "timesteps": config.get("n_timesteps") or config.get("hyperparams", {}).get(
+            "n_timesteps") or config.get("timesteps"),
+        "train_wall_s": int(wall), "command": config.get("command"),
+        "versions": config.get("versions"), "machine": heldout.get("machine"),
+        "script": f"scripts/train_agent.sh {env_id} {args.algo}"}
+    tmp = args.headroom.with_name(args.headroom.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1) + "\n")
+    tmp.replace(args.headroom)
+    print(f"{env_id} {args.algo}: {summary['reward_mean']:.3f} {summary['reward_ci95']}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
