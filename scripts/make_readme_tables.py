@@ -32,6 +32,7 @@ DATA = ROOT / "docs" / "data"
 SOURCES = {"physics": DATA / "readme_physics.json", "headroom": DATA / "headroom.json",
            "speed": DATA / "readme_speed.json", "soak": DATA / "soak.json"}
 HEADROOM_AGENTS = ("random", "study", "model-based", "search", "ppo", "sac")
+TRAINED = ("ppo", "sac")
 
 
 def begin_marker(name: str) -> str:
@@ -71,7 +72,8 @@ def headroom_table(data: dict[str, Any]) -> str:
             "|---" * (len(shown) + 3) + "|"]
     for env_id, r in results.items():
         cells = [_mean_ci(r["agents"][a]["reward_mean"], r["agents"][a]["reward_ci95"])
-                 if a in r["agents"] else "-" for a in shown]
+                 if a in r["agents"] else "not trained" if a in TRAINED else "-"
+                 for a in shown]
         regret = r["regret_model_based"]
         rows.append(f"| {env_id} | " + " | ".join(cells) + f" | "
                     f"{_mean_ci(regret['mean'], regret['ci95'])} | "
@@ -88,7 +90,19 @@ def headroom_table(data: dict[str, Any]) -> str:
             f"beats study by at least {data['margin']:g} and model-based beats random and study, "
             f"each with non-overlapping intervals. {meta['machine']}, Python {meta['python']}, "
             f"MuJoCo {meta['mujoco']}; {runs}: `python benchmarks/headroom.py --ids ID "
-            "--episodes 200 --seed 80000 --workers 2 --out docs/data/headroom.json`")
+            "--episodes 200 --seed 80000 --workers 2 --out docs/data/headroom.json`"
+            + _trained_note(results))
+
+
+def _trained_note(results: dict[str, Any]) -> str:
+    """How the learned agents in the table were trained (budget, wall time, script)."""
+    runs = [f"{a.upper()} on {env_id}: {t['timesteps']} fetches in "
+            f"{t['train_wall_s'] / 60:.0f} min on one core"
+            for env_id, r in results.items() for a, t in r.get("trained", {}).items()]
+    if not runs:
+        return ""
+    return (". Learned agents (`food-fetch train`, shipped hyperparameters, then evaluated "
+            "on the same scenes; `scripts/train_agent.sh ID ALGO`): " + "; ".join(runs) + ".")
 
 
 def speed_table(data: dict[str, Any]) -> str:
