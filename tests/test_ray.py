@@ -47,6 +47,28 @@ def _run(argv: list[str], cwd: Path) -> tuple[int, str, str]:
     return proc.returncode, proc.stdout, proc.stderr
 
 
+def _start(argv: list[str], cwd: Path) -> subprocess.Popen[str]:
+    return subprocess.Popen(argv, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=ENV, start_new_session=True)
+
+
+def _wait_for_lines(path: Path, n: int, proc: subprocess.Popen[str]) -> None:
+    """Until ``path`` has ``n`` lines (or the run ended, or TIMEOUT passed)."""
+    deadline = time.monotonic() + TIMEOUT
+    while time.monotonic() < deadline and proc.poll() is None:
+        if path.exists() and len(path.read_text().splitlines()) >= n:
+            return
+        time.sleep(0.2)
+
+
+def _stderr_once_ended(proc: subprocess.Popen[str], timeout: float, what: str) -> str:
+    try:
+        return proc.communicate(timeout=timeout)[1]
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        pytest.fail(f"still running {timeout:.0f} s after {what} (a hang)")
+
+
 def _same(rec: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in rec.items() if k != "wall_s"}
 
@@ -93,21 +115,11 @@ def test_sigterm_on_ray_keeps_what_finished(tmp_path: Path) -> None:
     argv = _cli("evaluate", "--env", "FoodFetch-Block-v0", "--env-kwargs", "estimator=oracle",
                 "--agent", "study", "--episodes", "60", "--seed", "3", "--ray", "--workers",
                 "2", "--ray-batch", "1", "--quiet", "--json", "part.json", "--json-episodes")
-    proc = subprocess.Popen(argv, cwd=tmp_path, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=ENV,
-                            start_new_session=True)
+    proc = _start(argv, tmp_path)
     log = tmp_path / "part.episodes.jsonl"
-    deadline = time.monotonic() + TIMEOUT
-    while time.monotonic() < deadline and proc.poll() is None:
-        if log.exists() and len(log.read_text().splitlines()) >= 4:  # header + 3 episodes
-            break
-        time.sleep(0.2)
+    _wait_for_lines(log, 4, proc)  # the header and 3 episodes
     proc.send_signal(signal.SIGTERM)
-    try:
-        _out, err = proc.communicate(timeout=60)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        pytest.fail("still running 60 s after SIGTERM")
+    err = _stderr_once_ended(proc, 60, "SIGTERM")
     assert proc.returncode == 128 + signal.SIGTERM, err
     assert "stopped by SIGTERM" in err and "Traceback" not in err, err
     part = json.loads((tmp_path / "part.json").read_text())
@@ -206,21 +218,11 @@ def test_sigterm_stops_rllib_training_with_a_checkpoint_and_the_policy(tmp_path:
     (tmp_path / "tiny.yml").write_text(TINY.format(env=env_id))
     argv = _cli("train", "--backend", "rllib", "--env", env_id, "--hyperparams-file",
                 "tiny.yml", "--timesteps", "100000", "--log-dir", "run", "--no-progress")
-    proc = subprocess.Popen(argv, cwd=tmp_path, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=ENV,
-                            start_new_session=True)
+    proc = _start(argv, tmp_path)
     progress = tmp_path / "run" / "progress.csv"
-    deadline = time.monotonic() + TIMEOUT
-    while time.monotonic() < deadline and proc.poll() is None:
-        if progress.exists() and len(progress.read_text().splitlines()) >= 2:  # 1 iteration
-            break
-        time.sleep(0.2)
+    _wait_for_lines(progress, 2, proc)  # the header and one iteration
     proc.send_signal(signal.SIGTERM)
-    try:
-        _out, err = proc.communicate(timeout=120)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        pytest.fail("still running 120 s after SIGTERM")
+    err = _stderr_once_ended(proc, 120, "SIGTERM")
     assert proc.returncode == 128 + signal.SIGTERM, err
     lines = [ln for ln in err.splitlines() if ln.startswith("food-fetch train:")]
     assert len(lines) == 1 and "stopped by SIGTERM" in lines[0] and "Traceback" not in err
@@ -258,22 +260,13 @@ def test_a_cluster_that_goes_away_ends_the_run_with_one_line_and_keeps_what_fini
         argv = _cli("evaluate", "--env", "FoodFetch-Block-v0", "--env-kwargs",
                     "estimator=oracle", "--agent", "study", "--episodes", "200", "--ray",
                     f"127.0.0.1:{port}", "--ray-batch", "1", "--quiet", "--json", "c.json")
-        proc = subprocess.Popen(argv, cwd=tmp_path, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True, env=ENV,
-                                start_new_session=True)
+        proc = _start(argv, tmp_path)
         log = tmp_path / "c.episodes.jsonl"
-        while time.monotonic() < deadline and proc.poll() is None:
-            if log.exists() and len(log.read_text().splitlines()) >= 4:
-                break
-            time.sleep(0.2)
+        _wait_for_lines(log, 4, proc)
     finally:
         os.killpg(head.pid, signal.SIGKILL)
         head.wait(30)
-    try:
-        _out, err = proc.communicate(timeout=120)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        pytest.fail("still running 120 s after the cluster stopped (a hang)")
+    err = _stderr_once_ended(proc, 120, "the cluster stopped")
     assert proc.returncode == 1, err
     ours = [ln for ln in err.splitlines() if ln.startswith("food-fetch evaluate:")]
     assert len(ours) == 1 and "Traceback" not in err, err
