@@ -23,11 +23,29 @@ ROOT = Path(__file__).resolve().parents[1]
 HEADROOM = ROOT / "docs" / "data" / "headroom.json"
 
 
+def _rewards(log: Path) -> dict[int, float]:
+    rows = [json.loads(line) for line in log.read_text().splitlines()[1:] if line.strip()]
+    return {int(r["seed"]): float(r["reward"]) for r in rows}
+
+
+def _paired(agent_log: Path, baseline_log: Path) -> dict[str, object]:
+    """The agent's reward less model-based's, paired on the scenes both ran."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from headroom import paired_difference
+
+    a, b = _rewards(agent_log), _rewards(baseline_log)
+    seeds = sorted(set(a) & set(b))
+    return paired_difference([a[s] for s in seeds], [b[s] for s in seeds])
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("run", type=Path, help="the folder scripts/train_agent.sh wrote")
     p.add_argument("--algo", choices=("ppo", "sac"), required=True)
     p.add_argument("--headroom", type=Path, default=HEADROOM)
+    p.add_argument("--paired-with", type=Path, default=None, metavar="LOG",
+                   help="the episode log (JSON Lines) of model-based on the same scenes: "
+                   "stores the learned agent's paired difference to it")
     args = p.parse_args()
     heldout = json.loads((args.run / "heldout.json").read_text())
     config = yaml.safe_load((args.run / "config.yml").read_text())
@@ -51,6 +69,9 @@ def main() -> int:
         "train_wall_s": int(wall), "command": config.get("command"),
         "versions": config.get("versions"), "machine": heldout.get("machine"),
         "script": f"scripts/train_agent.sh {env_id} {args.algo}"}
+    if args.paired_with is not None:
+        base["trained"][args.algo]["minus_model_based"] = _paired(
+            args.run / "heldout.episodes.jsonl", args.paired_with)
     tmp = args.headroom.with_name(args.headroom.name + ".tmp")
     tmp.write_text(json.dumps(data, indent=1) + "\n")
     tmp.replace(args.headroom)

@@ -68,7 +68,8 @@ def _mean_ci(mean: float, ci: list[float] | None) -> str:
 def headroom_table(data: dict[str, Any]) -> str:
     results = data["results"]
     shown = [a for a in HEADROOM_AGENTS if any(a in r["agents"] for r in results.values())]
-    rows = ["| env id | " + " | ".join(shown) + " | regret of model-based | orderings |",
+    rows = ["| env id | " + " | ".join(a.upper() if a in TRAINED else a for a in shown)
+            + " | regret of model-based | orderings |",
             "|---" * (len(shown) + 3) + "|"]
     for env_id, r in results.items():
         cells = [_mean_ci(r["agents"][a]["reward_mean"], r["agents"][a]["reward_ci95"])
@@ -84,25 +85,27 @@ def headroom_table(data: dict[str, Any]) -> str:
     meta = first["meta"]
     runs = ", ".join(f"{env_id} at {r['meta']['commit']} ({r['meta']['wall_s']:.0f} s)"
                      for env_id, r in results.items())
-    return ("\n".join(rows) + f"\n\nMean reward [95 % interval] on {n} scenes per id, "
-            f"reset(seed) from seed {seed.group(1) if seed else '?'} (never tuned on); "
-            "regret: search less model-based, paired on the same scenes. Orderings: search "
-            f"beats study by at least {data['margin']:g} and model-based beats random and study, "
-            f"each with non-overlapping intervals. {meta['machine']}, Python {meta['python']}, "
-            f"MuJoCo {meta['mujoco']}; {runs}: `python benchmarks/headroom.py --ids ID "
-            "--episodes 200 --seed 80000 --workers 2 --out docs/data/headroom.json`"
-            + _trained_note(results))
+    return ("\n".join(rows) + f"\n\nMean reward [95 %] on {n} scenes per id from seed "
+            f"{seed.group(1) if seed else '?'} (never tuned on); regret: search less "
+            "model-based, paired. Orderings: search beats study by at least "
+            f"{data['margin']:g}, model-based beats random and study, intervals apart. "
+            f"{meta['machine']}; {runs}: `python benchmarks/headroom.py --ids ID "
+            "--episodes 200 --seed 80000 --workers 2`" + _trained_note(results))
+
+
+def _paired_note(trained: dict[str, Any]) -> str:
+    d = trained.get("minus_model_based")
+    return "" if d is None else f", minus model-based {_mean_ci(d['mean'], d['ci95'])} paired"
 
 
 def _trained_note(results: dict[str, Any]) -> str:
     """How the learned agents in the table were trained (budget, wall time, script)."""
     runs = [f"{a.upper()} on {env_id}: {t['timesteps']} fetches in "
-            f"{t['train_wall_s'] / 60:.0f} min on one core"
+            f"{t['train_wall_s'] / 60:.0f} min" + _paired_note(t)
             for env_id, r in results.items() for a, t in r.get("trained", {}).items()]
     if not runs:
         return ""
-    return (". Learned agents (`food-fetch train`, shipped hyperparameters, then evaluated "
-            "on the same scenes; `scripts/train_agent.sh ID ALGO`): " + "; ".join(runs) + ".")
+    return (". Learned (`scripts/train_agent.sh ID ALGO`): " + "; ".join(runs) + ".")
 
 
 def speed_table(data: dict[str, Any]) -> str:
@@ -116,8 +119,8 @@ def speed_table(data: dict[str, Any]) -> str:
             f"| one fetch, 9-piece diced mix (median of seeds {seeds}) | "
             f"{diced['realtime']:.1f}x real time; {diced['ratio_in_run']:.2f}x its `mj_step` |"]
     for env_id, e in envs.items():
-        rows.append(f"| {env_id} episodes | {e['eps_cpu']:.2f} per CPU second "
-                    f"({e['eps']:.2f} per wall second), probes {100 * e['probe_share']:.0f} % |")
+        rows.append(f"| {env_id} episodes | {e['eps_cpu']:.2f}/CPU s ({e['eps']:.2f}/wall s), "
+                    f"probes {100 * e['probe_share']:.0f} % |")
     meta = data["meta"]
     load = (f"{meta['load_average_at_start']:g} at the start, "
             f"{meta['load_average_at_end']:g} at the end")
@@ -126,19 +129,19 @@ def speed_table(data: dict[str, Any]) -> str:
 
 
 def soak_table(data: dict[str, Any]) -> str:
-    rows = ["| id | episodes | memory, early -> late | CPU per episode | early ones rerun |",
+    rows = ["| id | episodes | memory, early -> late | CPU/episode | early rerun |",
             "|---|---|---|---|---|"]
     for env_id, run in data["ids"].items():
         s, again = run["summary"], run["replay"]
-        rows.append(f"| {env_id} | {s['episodes']} | {s['rss_median_early_mib']:.1f} -> "
-                    f"{s['rss_median_late_mib']:.1f} MiB | "
-                    f"{s['episode_cpu_s_median_early']:.3f} -> "
-                    f"{s['episode_cpu_s_median_late']:.3f} s | "
+        rows.append(f"| {env_id} | {s['episodes']} | {s['rss_median_early_mib']:.0f} -> "
+                    f"{s['rss_median_late_mib']:.0f} MiB | "
+                    f"{s['episode_cpu_s_median_early']:.2f} -> "
+                    f"{s['episode_cpu_s_median_late']:.2f} s | "
                     f"{again['median_paired_change_pct']:+.1f} % |")
     m = data["machine"]
-    return ("\n".join(rows) + "\n\nMedians over the second and last tenth of the episodes "
-            "of one process (the windows' scenes differ; the last column reruns the early "
-            f"episodes at the end); {m['machine']}, busy: `python benchmarks/soak.py --env ID`")
+    return ("\n".join(rows) + "\n\nMedians over the second and last tenths of one process's "
+            "episodes (the last column reruns the early ones at the end); "
+            f"{m['machine']}, busy: `python benchmarks/soak.py --env ID`")
 
 
 TABLES: dict[str, Callable[[dict[str, Any]], str]] = {
