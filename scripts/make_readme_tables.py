@@ -138,10 +138,14 @@ def soak_table(data: dict[str, Any]) -> str:
                     f"{s['episode_cpu_s_median_early']:.2f} -> "
                     f"{s['episode_cpu_s_median_late']:.2f} s | "
                     f"{again['median_paired_change_pct']:+.1f} % |")
-    m = data["machine"]
+    machines: dict[str, list[str]] = {}
+    for env_id, run in data["ids"].items():  # ids soaked on another machine name it
+        machines.setdefault(run.get("machine", data["machine"]["machine"]), []).append(
+            env_id.removeprefix("FoodFetch-"))
+    where = "; ".join(f"{', '.join(ids)} on {m}" for m, ids in machines.items())
     return ("\n".join(rows) + "\n\nMedians over the second and last tenths of one process's "
-            "episodes (the last column reruns the early ones at the end); "
-            f"{m['machine']}, busy: `python benchmarks/soak.py --env ID`")
+            f"episodes (the last column reruns the early ones at the end); {where}, busy: "
+            "`python benchmarks/soak.py --env ID`")
 
 
 TABLES: dict[str, Callable[[dict[str, Any]], str]] = {
