@@ -47,9 +47,17 @@ def _pct(x: float, digits: int = 2) -> str:
     return f"{100 * x:.{digits}f} %"
 
 
+def _machine(text: str) -> str:
+    """"x86_64, 2 cores (Intel(R) Xeon(R) Processor)" -> "2 x86_64 cores, Intel Xeon"."""
+    arch, _, rest = text.partition(", ")
+    cores, _, cpu = rest.partition(" (")
+    cpu = cpu[:-1].replace("(R)", "").replace(" Processor", "").strip()
+    return f"{cores.replace(' cores', '')} {arch} cores" + (f", {cpu}" if cpu else "")
+
+
 def _footer(meta: dict[str, Any]) -> str:
-    return (f"\n{meta['machine']}, Python {meta['python']}, MuJoCo {meta['mujoco']}, at "
-            f"{meta['commit']}, {meta['wall_s']:.0f} s: `{meta['command']}`")
+    return (f"\n{_machine(meta['machine'])}, Python {meta['python']}, MuJoCo {meta['mujoco']}, "
+            f"at {meta['commit']}, {meta['wall_s']:.0f} s: `{meta['command']}`")
 
 
 def physics_table(data: dict[str, Any]) -> str:
@@ -89,7 +97,7 @@ def headroom_table(data: dict[str, Any]) -> str:
             f"{seed.group(1) if seed else '?'} (never tuned on); regret: search less "
             "model-based, paired. Orderings: search beats study by at least "
             f"{data['margin']:g}, model-based beats random and study, intervals apart. "
-            f"{meta['machine']}; {runs}: `python benchmarks/headroom.py --ids ID "
+            f"{_machine(meta['machine'])}; {runs}: `python benchmarks/headroom.py --ids ID "
             "--episodes 200 --seed 80000 --workers 2`" + _trained_note(results))
 
 
@@ -125,26 +133,27 @@ def speed_table(data: dict[str, Any]) -> str:
     load = (f"{meta['load_average_at_start']:g} at the start, "
             f"{meta['load_average_at_end']:g} at the end")
     return ("\n".join(rows) + f"\n\nOne core, {data['episodes']} episodes an id; load average "
-            f"{load} (wall figures drop on a busy machine); " + _footer(meta).lstrip("\n"))
+            f"{load}; " + _footer(meta).lstrip("\n"))
 
 
 def soak_table(data: dict[str, Any]) -> str:
-    rows = ["| id | episodes | memory, early -> late | CPU/episode | early rerun |",
+    rows = ["| id | episodes | RSS MiB, early -> late | CPU s/episode | early rerun |",
             "|---|---|---|---|---|"]
     for env_id, run in data["ids"].items():
         s, again = run["summary"], run["replay"]
-        rows.append(f"| {env_id} | {s['episodes']} | {s['rss_median_early_mib']:.0f} -> "
-                    f"{s['rss_median_late_mib']:.0f} MiB | "
+        rows.append(f"| {env_id.removeprefix('FoodFetch-')} | {s['episodes']} | "
+                    f"{s['rss_median_early_mib']:.0f} -> {s['rss_median_late_mib']:.0f} | "
                     f"{s['episode_cpu_s_median_early']:.2f} -> "
-                    f"{s['episode_cpu_s_median_late']:.2f} s | "
+                    f"{s['episode_cpu_s_median_late']:.2f} | "
                     f"{again['median_paired_change_pct']:+.1f} % |")
     machines: dict[str, list[str]] = {}
     for env_id, run in data["ids"].items():  # ids soaked on another machine name it
-        machines.setdefault(run.get("machine", data["machine"]["machine"]), []).append(
+        machine = _machine(run.get("machine", data["machine"]["machine"]))
+        machines.setdefault(machine, []).append(
             env_id.removeprefix("FoodFetch-"))
     where = "; ".join(f"{', '.join(ids)} on {m}" for m, ids in machines.items())
     return ("\n".join(rows) + "\n\nMedians over the second and last tenths of one process's "
-            f"episodes (the last column reruns the early ones at the end); {where}, busy: "
+            f"episodes (the last column reruns the early ones at the end); {where}: "
             "`python benchmarks/soak.py --env ID`")
 
 
