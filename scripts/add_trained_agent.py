@@ -3,8 +3,8 @@
     python scripts/add_trained_agent.py out/sac_FoodFetch-Block-v1 --algo sac
 
 reads what ``scripts/train_agent.sh`` left in the run folder (``heldout.json``: the model on
-the 200 headroom scenes; ``config.yml``: the training budget; ``train_wall.txt``: its wall
-time) and stores the agent's summary under ``results[ID]["agents"][ALGO]`` and how it was
+the 200 headroom scenes; ``config.yml``: the training budget, the total when resumed;
+``train_wall.txt``: the training's wall time in seconds, the total of every part) and stores the agent's summary under ``results[ID]["agents"][ALGO]`` and how it was
 trained under ``results[ID]["trained"][ALGO]``.  Refused unless the evaluation used the same
 scenes (environment id, seed, episodes, env kwargs) as the id's headroom run.
 """
@@ -64,8 +64,8 @@ def main() -> int:
     base["agents"][args.algo] = summary
     wall = (args.run / "train_wall.txt").read_text().strip()
     base.setdefault("trained", {})[args.algo] = {
-        "timesteps": config.get("n_timesteps") or config.get("hyperparams", {}).get(
-            "n_timesteps") or config.get("timesteps"),
+        "timesteps": config.get("timesteps") or config.get("hyperparams", {}).get(
+            "n_timesteps"),
         "train_wall_s": int(wall), "command": config.get("command"),
         "versions": config.get("versions"), "machine": heldout.get("machine"),
         "script": f"scripts/train_agent.sh {env_id} {args.algo}"}
