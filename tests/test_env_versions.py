@@ -39,7 +39,9 @@ def test_v0_ids_give_the_numbers_they_gave_before_v1(env_id: str) -> None:
     env = gym.make(env_id)
     for row in REFERENCE[env_id]:
         obs, _ = env.reset(seed=row["seed"])
-        np.testing.assert_array_equal(obs, np.array(row["obs"], np.float32))
+        # The observations are the probes' fits (numpy/scipy): one float32 ulp apart across
+        # CPUs (rel 1.0e-7 on AMD EPYC against this Intel Xeon reference); the outcomes exact.
+        np.testing.assert_allclose(obs, np.array(row["obs"], np.float32), rtol=1e-6, atol=1e-7)
         _, reward, _, _, info = env.step(np.array(row["action"], np.float32))
         assert reward == row["reward"]
         assert info["fetch_rate"] == row["fetch_rate"]
