@@ -4,8 +4,9 @@
 
 reads what ``scripts/train_agent.sh`` left in the run folder (``heldout.json``: the model on
 the 200 headroom scenes; ``config.yml``: the training budget, the total when resumed;
-``train_wall.txt``: the training's wall time in seconds, the total of every part) and stores the agent's summary under ``results[ID]["agents"][ALGO]`` and how it was
-trained under ``results[ID]["trained"][ALGO]``.  Refused unless the evaluation used the same
+``train_wall.txt``: the training's wall time in seconds, the total of every part) and
+stores the agent's summary under ``results[ID]["agents"][ALGO]`` and how it was trained
+under ``results[ID]["trained"][ALGO]``.  Refused unless the evaluation used the same
 scenes (environment id, seed, episodes, env kwargs) as the id's headroom run.
 """
 

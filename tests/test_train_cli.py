@@ -292,3 +292,19 @@ def test_sac_a_few_hundred_steps(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert code == 0, err
     # the replay buffer as npz, read back without pickle (agents.train_safety)
     assert (tmp_path / "checkpoints/rl_model_replay_buffer_300_steps.npz").exists()
+
+
+def test_resume_without_env_continues_on_the_checkpoints_env(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "v1"
+    code, _, err = run_cli(["train", "--algo", "ppo", "--env", "FoodFetch-Block-v1",
+                            "--timesteps", "8", "--log-dir", str(log), "--no-progress",
+                            "--no-eval", *FAST], capsys)
+    assert code == 0, err
+    log2 = tmp_path / "resumed"
+    code, out, err = run_cli(["train", "--timesteps", "16", "--log-dir", str(log2),
+                              "--no-progress", "--no-eval", "--resume",
+                              str(log / "model.zip"), *FAST], capsys)
+    assert code == 0, err
+    assert yaml.safe_load((log2 / "config.yml").read_text())["env"] == "FoodFetch-Block-v1"
+    assert "--env FoodFetch-Block-v1" in out

@@ -21,6 +21,7 @@ DESCRIPTION = ("Train PPO or SAC with the hyperparameters shipped for the enviro
                "the train extra (stable-baselines3, torch). --backend rllib trains with RLlib "
                "instead, over Ray env runners (the rllib extra).")
 ENV_HELP = "FoodFetch-{Block,Row,TwoRows,Diced}-v0 or -v1"
+DEFAULT_ENV = "FoodFetch-Block-v0"
 
 
 def _log_dir(text: str) -> Path:
@@ -77,7 +78,27 @@ def _cmd_train_rllib(args: argparse.Namespace) -> int:
     return 0
 
 
+def _resumed_env(checkpoint: str) -> str | None:
+    """The env id of the run a checkpoint or model belongs to (its ``config.yml``, beside
+    the model or one folder up from ``checkpoints/``), or None where there is none."""
+    try:
+        import yaml
+    except ImportError:  # no train extra: the command says so next
+        return None
+    here = Path(checkpoint).parent
+    for folder in (here, here.parent):
+        try:
+            config = yaml.safe_load((folder / "config.yml").read_text())
+        except (OSError, yaml.YAMLError):
+            continue
+        if isinstance(config, dict) and isinstance(config.get("env"), str):
+            return config["env"]
+    return None
+
+
 def cmd_train(args: argparse.Namespace) -> int:
+    if args.env is None:  # --resume continues on the checkpoint's env unless told otherwise
+        args.env = (_resumed_env(args.resume) if args.resume else None) or DEFAULT_ENV
     if args.env not in _env_ids():
         raise UsageError(f"food-fetch train: unknown environment id {args.env!r}; choose "
                          f"from {', '.join(_env_ids())}")
@@ -135,8 +156,9 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    "CPUs, the default), 'auto', HOST:PORT or ray://HOST:PORT")
     p.add_argument("--algo", choices=("ppo", "sac"), default=None,
                    help="algorithm (default: ppo; with --resume, the checkpoint's)")
-    p.add_argument("--env", default="FoodFetch-Block-v0", metavar="ID",
-                   help=f"environment id: {ENV_HELP} (default: FoodFetch-Block-v0)")
+    p.add_argument("--env", default=None, metavar="ID",
+                   help=f"environment id: {ENV_HELP} (default: {DEFAULT_ENV}; with --resume, "
+                   "the env of the checkpoint's run, from its config.yml)")
     p.add_argument("--timesteps", type=positive_int, default=None, metavar="N",
                    help="total environment steps (= fetches); default: n_timesteps of the "
                    "YAML. With --resume, N counts the checkpoint's steps too: it trains N "
