@@ -249,16 +249,12 @@ class _WorkersLost(Exception):
 
 class _EpisodeFailed(Exception):
     def __init__(self, task: Task, exc: BaseException | str) -> None:
+        """``exc``: the exception, or its ``"TypeName: message"`` (raised on another machine)."""
         if isinstance(exc, BaseException):
             line = str(exc).splitlines()[0] if str(exc) else ""
             exc = f"{type(exc).__name__}{': ' + line if line else ''}"
         super().__init__(f"{task.agent!r} episode {task.episode} (seed {task.seed}) failed: "
                          f"{exc}")
-
-    @classmethod
-    def from_line(cls, task: Task, line: str) -> _EpisodeFailed:
-        """From ``"TypeName: message"`` (an episode that raised on another machine)."""
-        return cls(task, line)
 
 
 # ------------------------------------------------------------------------------ running

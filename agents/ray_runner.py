@@ -38,7 +38,7 @@ _RAY_ENV = {"RAY_gcs_rpc_server_reconnect_timeout_s": "3600"}
 _LOCAL_ENV = {"RAY_worker_niceness": "0", "RAY_USAGE_STATS_ENABLED": "0"}
 
 
-class RaySetupError(RuntimeError):
+class RaySetupError(Exception):
     """Ray is missing, the address is malformed or nothing answers there (one line)."""
 
 
@@ -142,8 +142,9 @@ def _run_batch(tasks: Sequence[Any]) -> list[tuple[str, Any]]:
     from agents import search
     from agents.evaluate import _init_worker, run_episode
 
-    _init_worker()
-    search.SPREAD_ON_RAY = True
+    if not search.SPREAD_ON_RAY:  # once per worker process
+        _init_worker()
+        search.SPREAD_ON_RAY = True
     out: list[tuple[str, Any]] = []
     for task in tasks:
         try:
@@ -177,7 +178,7 @@ def run_on_ray(tasks: Sequence[Any], collect: Callable[[int, dict[str, Any]], No
                     group = refs.pop(ref)
                     for i, (status, value) in zip(group, _get(ray, ref, address), strict=False):
                         if status == "error":
-                            raise _EpisodeFailed.from_line(tasks[i], value)
+                            raise _EpisodeFailed(tasks[i], value)
                         collect(i, value)
         finally:
             for ref in refs:

@@ -122,13 +122,13 @@ def load_network(path: Path) -> _Network:
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise PolicyFileError(f"{str(meta_path)!r} is not a food-fetch RLlib policy "
                               f"(format {FORMAT!r})")
+    for key in ("encoder_activation", "head_activation"):
+        if meta.get(key) not in ACTIVATIONS:
+            raise PolicyFileError(f"{str(meta_path)!r}: unknown {key} {meta.get(key)!r}")
     try:
-        net = _Network(meta, arrays)
+        return _Network(meta, arrays)
     except (KeyError, TypeError) as exc:
         raise PolicyFileError(f"the policy {str(npz)!r} lacks {exc}") from None
-    if meta.get("encoder_activation") not in ACTIVATIONS:
-        raise PolicyFileError(f"unknown activation {meta.get('encoder_activation')!r}")
-    return net
 
 
 class RLlibPolicyAgent(Agent):

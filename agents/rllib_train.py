@@ -139,13 +139,7 @@ def _export(algo: Any, plan: RLlibPlan) -> Path:
 
     rng = np.random.default_rng(plan.seed)
     module = algo.get_module()
-    dim = int(module.model_config.get("obs_dim", 0)) or None
-    if dim is None:
-        import gymnasium as gym
-
-        import fetch_env  # noqa: F401
-
-        dim = int(np.prod(gym.spec(plan.env_id).make().observation_space.shape))
+    dim = int(np.prod(module.observation_space.shape))
     check = rng.uniform(-3.0, 3.0, (16, dim)).astype(np.float32)
     return export_policy(module, plan.algo, plan.env_id, plan.log_dir, check)
 
@@ -179,7 +173,9 @@ def _train_loop(algo: Any, plan: RLlibPlan, progress: bool) -> tuple[int, Path |
 
     from agents.train_safety import StopSignals
 
-    steps, iteration, mark, last = 0, 0, 0, None
+    steps, iteration, mark = 0, 0, 0
+    last: Path | None = None
+    last_steps = -1
     bar = tqdm(total=plan.timesteps, unit="step", disable=not progress or None,
                file=sys.stderr, desc=f"rllib {plan.algo} {plan.env_id}")
     with (plan.log_dir / "progress.csv").open("w", newline="") as f, StopSignals() as stop:
@@ -196,10 +192,9 @@ def _train_loop(algo: Any, plan: RLlibPlan, progress: bool) -> tuple[int, Path |
             f.flush()
             if plan.save_freq > 0 and steps // plan.save_freq > mark:
                 mark = steps // plan.save_freq
-                last = _checkpoint(algo, plan.log_dir, steps)
+                last, last_steps = _checkpoint(algo, plan.log_dir, steps), steps
         bar.close()
-        if stop.signum is not None or last is None or not last.name.startswith(
-                f"rllib_{steps}_"):
+        if last_steps != steps:  # the end (or the stop) not yet checkpointed
             last = _checkpoint(algo, plan.log_dir, steps)
         return steps, last, stop
 

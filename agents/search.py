@@ -136,9 +136,11 @@ def _scores_on_ray(env: Any, scene_seed: int,
     """Each key simulated on the scene of ``reset(seed=scene_seed)`` as a Ray task."""
     import ray
 
+    if not _REMOTE:  # exported to the cluster once per process, not once per round
+        _REMOTE.append(ray.remote(num_cpus=1, max_retries=1)(_simulate_key))
     spec = env.spec
-    remote = ray.remote(num_cpus=1, max_retries=1)(_simulate_key)
-    return ray.get([remote.remote(spec.id, dict(spec.kwargs), scene_seed, k) for k in keys])
+    return ray.get([_REMOTE[0].remote(spec.id, dict(spec.kwargs), scene_seed, k)
+                    for k in keys])
 
 
 def _simulate_key(env_id: str, env_kwargs: dict[str, Any], scene_seed: int,
@@ -162,3 +164,4 @@ def _simulate_key(env_id: str, env_kwargs: dict[str, Any], scene_seed: int,
 
 
 _SIM_ENVS: dict[tuple[str, str], list[Any]] = {}
+_REMOTE: list[Any] = []

@@ -230,6 +230,7 @@ def _run_with_bar(args: argparse.Namespace, run: _Run, tasks: list[Any], log: An
     from tqdm import tqdm
 
     from agents.evaluate import EvaluationInterrupted, run_tasks
+    from agents.ray_runner import RaySetupError  # (imports Ray only when it connects)
 
     bar = tqdm(total=len(tasks), unit="ep", disable=args.quiet or None, file=sys.stderr,
                desc=f"{args.env} x {len(run.agents)} agents")
@@ -255,9 +256,7 @@ def _run_with_bar(args: argparse.Namespace, run: _Run, tasks: list[Any], log: An
                         notify=notify, ray_address=args.ray, ray_batch=args.ray_batch)
     except EvaluationInterrupted as exc:
         new, run.stopped = exc.results, exc
-    except RuntimeError as exc:  # agents.ray_runner.RaySetupError: before any episode ran
-        if type(exc).__name__ != "RaySetupError":
-            raise
+    except RaySetupError as exc:  # Ray could not start or join: before any episode ran
         raise UsageError(f"food-fetch evaluate: {exc}") from None
     finally:
         stop.armed = False  # from here a signal is remembered: the results get written
