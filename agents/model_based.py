@@ -32,6 +32,15 @@ The model (SI units throughout; numbers in :class:`ModelBasedConfig`):
   costs, the agent clamps at ``omega_fast`` (still slowed near the motor's stall) and lifts
   at ``lift_speed_fast``, with the lift's acceleration in the grip rule.
 
+* **Layout** (read from the env at ``begin_episode``, as an RL Zoo file keeps hyperparameters
+  per id): a two-row plate (``layout="two_rows"``) is a grid of equal cubes, two in series
+  along the clamp with a 1 mm gap between them, so the blades hold the pair once that gap has
+  closed, with little squeeze, and a deeper squeeze of soft cubes in series tears them in the
+  lift.  There the grip rule above does not apply (the pair is held by the closed gap, not by
+  the squeeze of one piece) and the squeeze is ``eps_min_two_rows`` of the span
+  (``LAYOUT_SETTINGS``; chosen on tuning seeds 100-139 of FoodFetch-TwoRows-v1,
+  docs/agents.md).
+
 Fallbacks: when the viscoelastic estimate is invalid (flag 0) K1, K2, B come from a cautious
 prior (the softest food-like modulus, 0.05 MPa, and the largest g1); an invalid mu is taken
 as the lowest (0.15).  With no estimates at all the agent is then a geometry-only rule.
@@ -76,6 +85,15 @@ class ModelBasedConfig:
     time_weight: float | None = None  # [1/s] the reward's time cost; None: the env's
     omega_fast: float = 0.4  # [rad/s] clamp speed when time costs (the action's fastest)
     lift_speed_fast: float = 0.04  # [m/s] lift speed when time costs (the action's fastest)
+    eps_min_two_rows: float = 0.07  # nominal squeeze of a two-row plate's span
+    layout: str | None = None  # the scene family; None: the env's, read at begin_episode
+
+
+# What a layout changes in the rule (see the module docstring): the config field of the least
+# squeeze, and whether the grip rule sizes the squeeze.
+LAYOUT_SETTINGS: dict[str, dict[str, str | bool]] = {
+    "two_rows": {"eps_min": "eps_min_two_rows", "grip_rule": False},
+}
 
 
 class ModelBasedAgent(Agent):
@@ -90,11 +108,16 @@ class ModelBasedAgent(Agent):
         self.geometry = geometry or Geometry()
         self.last_plan: dict[str, Any] = {}
         self.time_weight = self.config.time_weight or 0.0
+        self.layout = self.config.layout
 
     def begin_episode(self, env: Any) -> None:
-        """Read the reward's time cost from the env unless the config fixes it."""
+        """Read the reward's time cost and the layout from the env unless the config fixes
+        them."""
         if self.config.time_weight is None:
             self.time_weight = float(getattr(env.unwrapped, "time_weight", 0.0))
+        if self.config.layout is None:
+            layout = getattr(env.unwrapped, "layout", None)
+            self.layout = layout if isinstance(layout, str) else None
 
     # ----------------------------------------------------------------- the model
     def plan(self, obs: np.ndarray) -> dict[str, Any]:
@@ -134,7 +157,9 @@ class ModelBasedAgent(Agent):
         eps_grip = 2.0 * dx_grip / w
         eps_safe = 1.0 - math.exp(-c.strain_margin * c.safe_log_strain)
         eps_cap = 1.0 - math.exp(-(c.safe_log_strain + c.overshoot))
-        eps = max(eps_grip, c.eps_min)
+        settings = LAYOUT_SETTINGS.get(self.layout or "", {})
+        eps_min = float(getattr(c, str(settings.get("eps_min", "eps_min"))))
+        eps = max(eps_grip, eps_min) if settings.get("grip_rule", True) else eps_min
         limited = ""
         if eps > eps_safe:
             limited = "grip needs more squeeze than the safe strain"

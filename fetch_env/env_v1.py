@@ -33,7 +33,9 @@ class FoodFetchRowV1Env(FoodFetchEnv):
         "FoodFetch-Row-v1: fetch a single row of cubes of any food.",
         "Two or three cubes (8 to 14 mm) side by side across the clamp direction at one of "
         "the study's spacings, of one material from the food space; every cube held counts "
-        "and every cube crushed costs its share.",
+        "and every cube crushed costs its share.  Known limit: the lightest touch (0.03 rad, "
+        "fastest) holds every row of this space, so one constant action is near the best "
+        "on every scene (docs/agents.md, 'How much choosing the angle is worth').",
         "row", "v1")
 
     __init__ = _with_defaults("row", "v1")
@@ -44,8 +46,10 @@ class FoodFetchTwoRowsV1Env(FoodFetchEnv):
         "FoodFetch-TwoRows-v1: fetch two rows of cubes of one of the study's stiffnesses.",
         "Two rows of cubes (8 to 12 mm), 1 mm apart along the clamp and 0.01 mm across, of "
         "one of the study's five stiffness levels (0.0123 to 200 MPa) with viscoelasticity "
-        "and friction from the food space: hard rows escape a gentle clamp, soft ones are "
-        "crushed by a firm one.",
+        "and friction from the food space: soft rows are crushed by a firm clamp.  Known "
+        "limit: 0.0123 MPa cubes packed this close are flung apart at squeezes of 5-15 % in "
+        "a way that changes with the step, so about a fifth of the scenes are a lottery for "
+        "any agent (docs/agents.md, 'How much choosing the angle is worth').",
         "two_rows", "v1")
 
     __init__ = _with_defaults("two_rows", "v1")

@@ -112,6 +112,28 @@ def test_model_based_grip_rule_and_strain_cap() -> None:
     assert b == pytest.approx(2 * a, rel=1e-3)
 
 
+def test_model_based_two_rows_squeeze_is_the_layout_setting() -> None:
+    """On a two-row plate the squeeze is eps_min_two_rows of the span whatever the grip rule
+    asks (the same soft, slippery, heavy plate asks for more than the safe strain elsewhere);
+    the layout comes from the env at begin_episode unless the config fixes it."""
+    soft = _obs(K1=150.0, K2=100.0, B=300.0, mu=0.15, total_mass=0.008, n_pieces=4.0,
+                span_along=0.021, mean_size=0.01, max_height=0.01)
+    free = ModelBasedAgent(ModelBasedConfig(layout="row")).plan(soft)
+    assert free["limited"] and free["eps"] > 0.2
+    agent = ModelBasedAgent()
+    agent.begin_episode(gym.make("FoodFetch-TwoRows-v1"))
+    assert agent.layout == "two_rows"
+    p = agent.plan(soft)
+    c = agent.config
+    assert p["eps"] == pytest.approx(c.eps_min_two_rows)
+    assert not p["limited"]
+    assert p["theta_d"] == pytest.approx((agent.geometry.gap + c.eps_min_two_rows * 0.021 / 2)
+                                         / p["L"])
+    fixed = ModelBasedAgent(ModelBasedConfig(layout="block"))
+    fixed.begin_episode(gym.make("FoodFetch-TwoRows-v1"))
+    assert fixed.layout == "block"
+
+
 def test_model_based_falls_back_without_estimates() -> None:
     agent = ModelBasedAgent()
     p = agent.plan(_obs(visco_valid=0.0, friction_valid=0.0))

@@ -95,3 +95,16 @@ def test_the_readme_quickstart_runs(tmp_path: Path) -> None:
         done = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True,
                               text=True, timeout=600)
         assert done.returncode == 0, f"README Python block {i}:\n{done.stderr[-2000:]}"
+
+
+def test_agents_page_theta_sweep_table_is_the_committed_json() -> None:
+    """docs/agents.md's constant-against-per-scene table is what the sweep JSON files say."""
+    path = ROOT / "benchmarks" / "theta_sweep.py"
+    spec = importlib.util.spec_from_file_location("theta_sweep", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    table = module.table_markdown()
+    assert table.count("\n") >= 5  # header, rule and a row per swept id
+    page = (ROOT / "docs" / "agents.md").read_text()
+    assert f"{module.MARK[0]}\n{table}\n{module.MARK[1]}" in page
