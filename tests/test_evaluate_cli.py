@@ -19,6 +19,7 @@ import pytest
 
 from agents import evaluate as ev
 from agents.cli import main
+from agents.cli.common import DEFAULT_ENV
 from tests.cli_helpers import assert_help_lists, assert_one_line_error, interrupt_episode, run_cli
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -129,7 +130,7 @@ def test_json_contract_and_table(tmp_path: Path, capsys: pytest.CaptureFixture[s
                            str(csv), "--quiet"], capsys)
     assert code == 0, err
     d = json.loads(js.read_text())
-    assert d["env"] == "FoodFetch-Block-v0" and d["episodes"] == 2 and d["seed"] == 3
+    assert d["env"] == DEFAULT_ENV and d["episodes"] == 2 and d["seed"] == 3
     assert set(d["agents"]) == {"study", "model-based"}
     for s in d["agents"].values():
         for key in ("reward_mean", "reward_ci95", "fetch_rate_mean", "success_rate",
@@ -164,7 +165,7 @@ def test_env_kwargs_reach_every_episode(tmp_path: Path,
     d = json.loads(js.read_text())
     assert d["env_kwargs"] == {"estimator": "oracle", "hold": 0.2}
     (episode,) = d["episodes_detail"]
-    env = gym.make("FoodFetch-Block-v0", estimator="oracle", hold=0.2)
+    env = gym.make(DEFAULT_ENV, estimator="oracle", hold=0.2)
     obs, _ = env.reset(seed=5)
     agent = StudyAgent()
     agent.seed(5)
@@ -270,7 +271,7 @@ BOTH = ["--agent", "study", "--agent", "random"]
     ([*BOTH, "--seed", "12"], "made with seed 11, this command has 12"),
     (["--agent", "study"], 'made with agents ["random", "study"], this command has ["study"]'),
     ([*BOTH, "--env-kwargs", "hold=0.2"], "made with env_kwargs {}"),
-    ([*BOTH, "--env", "FoodFetch-Row-v0"], 'made with env "FoodFetch-Block-v0"'),
+    ([*BOTH, "--env", "FoodFetch-Row-v0"], f'made with env "{DEFAULT_ENV}"'),
     ([*BOTH, "--dataset", "food-fetch/x"], "--resume cannot record --dataset"),
     ([*BOTH, "--episodes-log", "other.jsonl"], "--resume continues its own log"),
 ])

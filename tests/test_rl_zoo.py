@@ -142,8 +142,8 @@ def test_run_settings_mistakes_are_one_line_and_write_nothing(
     if block is not None:
         hp.write_text(yaml.safe_dump({ENV: block}))
         argv = [*argv, "--hyperparams-file", str(hp)]
-    code, _, err = run_cli(["train", "--timesteps", "2", "--no-progress", "--log-dir", str(log),
-                            *argv], capsys)
+    code, _, err = run_cli(["train", "--env", ENV, "--timesteps", "2", "--no-progress",
+                            "--log-dir", str(log), *argv], capsys)
     assert_one_line_error(code, err)
     assert fragment.replace("{hp}", str(hp)) in err
     assert not log.exists()

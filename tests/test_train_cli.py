@@ -12,6 +12,7 @@ import pytest
 import yaml
 
 from agents.cli import main
+from agents.cli.common import DEFAULT_ENV
 from agents.train import load_hyperparams, parse_override
 from tests.cli_helpers import assert_help_lists, assert_one_line_error, run_cli
 
@@ -49,7 +50,7 @@ def test_mistakes_are_one_line_and_exit_2(argv: list[str], fragment: str, tmp_pa
     assert not log.exists()
 
 
-BLOCK_NOT_A_MAPPING = "FoodFetch-Block-v0: 5\n"
+BLOCK_NOT_A_MAPPING = f"{DEFAULT_ENV}: 5\n"  # the id train runs without --env
 
 
 @pytest.mark.parametrize("hyperparams, fragment", [
@@ -78,7 +79,7 @@ BLOCK_NOT_A_MAPPING = "FoodFetch-Block-v0: 5\n"
      "FoodFetchEnv.__init__() got an unexpected keyword argument 'bogus'"),
     (["env_kwargs={fetch_weight: -1}"], "env_kwargs={'fetch_weight': -1}: fetch_weight must"),
     (["policy_kwargs={net_arch: abc}"], "bad ppo hyperparameters policy_kwargs={'net_arch': "),
-    ([], "the FoodFetch-Block-v0 entry of"),  # with --hyperparams-file BLOCK_NOT_A_MAPPING
+    ([], f"the {DEFAULT_ENV} entry of"),  # with --hyperparams-file BLOCK_NOT_A_MAPPING
 ])
 def test_bad_hyperparameters_are_one_line_and_write_nothing(
         hyperparams: list[str], fragment: str, tmp_path: Path,
@@ -144,7 +145,7 @@ def test_short_run_checkpoints_resumes_and_evaluates(tmp_path: Path,
                  "checkpoints/rl_model_16_steps.zip"):
         assert (log / name).exists(), name
     cfg = yaml.safe_load((log / "config.yml").read_text())
-    assert cfg["algo"] == "ppo" and cfg["env"] == "FoodFetch-Block-v0" and cfg["seed"] == 1
+    assert cfg["algo"] == "ppo" and cfg["env"] == DEFAULT_ENV and cfg["seed"] == 1
     assert cfg["timesteps"] == 16 and cfg["finished_steps"] == 16
     assert cfg["hyperparams"]["n_steps"] == 8 and "stable_baselines3" in cfg["versions"]
     assert "evaluate --agent" in out

@@ -12,6 +12,9 @@ from pathlib import Path
 from typing import Any
 
 EXIT_USAGE = 2
+# The id evaluate and train run without --env: the benchmark id (a -v0 id would print
+# gymnasium's out-of-date note on every default run).
+DEFAULT_ENV = "FoodFetch-Block-v1"
 
 
 class UsageError(Exception):

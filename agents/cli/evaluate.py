@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from agents.cli.common import (
+    DEFAULT_ENV,
     EXIT_USAGE,
     UsageError,
     out_dir,
@@ -545,9 +546,9 @@ def add_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--agent", action="append", metavar="NAME|PATH",
                    help="agent to evaluate; repeat for a side-by-side table (default: random, "
                    "study, model-based)")
-    p.add_argument("--env", default="FoodFetch-Block-v0", metavar="ID",
+    p.add_argument("--env", default=DEFAULT_ENV, metavar="ID",
                    help="environment id: FoodFetch-{Block,Row,TwoRows,Diced}-v0 or -v1 "
-                   "(default: FoodFetch-Block-v0)")
+                   f"(default: {DEFAULT_ENV}, the benchmark id)")
     p.add_argument("--env-kwargs", type=_env_kwarg, nargs="+", default=[], metavar="KEY=VALUE",
                    help="keyword arguments of the environment, values read as JSON where "
                    "they are JSON, else as strings (e.g. fetch_impratio=1000 "

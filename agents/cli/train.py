@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from agents.cli.common import UsageError, integer, positive_int, require_extra, seed
+from agents.cli.common import (
+    DEFAULT_ENV,
+    UsageError,
+    integer,
+    positive_int,
+    require_extra,
+    seed,
+)
 
 HELP = "train PPO or SAC on a FoodFetch environment (Stable-Baselines3 or RLlib)"
 DESCRIPTION = ("Train PPO or SAC with the hyperparameters shipped for the environment "
@@ -21,7 +28,6 @@ DESCRIPTION = ("Train PPO or SAC with the hyperparameters shipped for the enviro
                "the train extra (stable-baselines3, torch). --backend rllib trains with RLlib "
                "instead, over Ray env runners (the rllib extra).")
 ENV_HELP = "FoodFetch-{Block,Row,TwoRows,Diced}-v0 or -v1"
-DEFAULT_ENV = "FoodFetch-Block-v0"
 
 
 def _log_dir(text: str) -> Path:
