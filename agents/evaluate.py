@@ -26,7 +26,7 @@ import numpy as np
 
 from agents.base import Agent
 
-AGENT_NAMES: tuple[str, ...] = ("random", "study", "model-based", "search")
+AGENT_NAMES: tuple[str, ...] = ("random", "study", "size-only", "model-based", "search")
 REFERENCE = "search"
 
 
@@ -46,6 +46,10 @@ def make_agent(spec: str, env_id: str | None = None) -> Agent:
 
         diced = None if env_id is None else env_id.startswith("FoodFetch-Diced")
         return StudyAgent(diced=diced)
+    if spec == "size-only":
+        from agents.baselines import SizeOnlyAgent
+
+        return SizeOnlyAgent()
     if spec == "model-based":
         from agents.model_based import ModelBasedAgent
 

@@ -10,7 +10,7 @@ import pytest
 
 import fetch_env  # noqa: F401
 from agents.base import Agent
-from agents.baselines import RandomAgent, StudyAgent
+from agents.baselines import RandomAgent, SizeOnlyAgent, StudyAgent
 from agents.evaluate import (
     AGENT_NAMES,
     AgentSpecError,
@@ -132,6 +132,22 @@ def test_model_based_two_rows_squeeze_is_the_layout_setting() -> None:
     fixed = ModelBasedAgent(ModelBasedConfig(layout="block"))
     fixed.begin_episode(gym.make("FoodFetch-TwoRows-v1"))
     assert fixed.layout == "block"
+
+
+def test_size_only_squeezes_a_share_of_the_width_at_the_fastest_speeds() -> None:
+    agent = SizeOnlyAgent()
+    geo = agent.geometry
+    wide = action_to_physical(agent.act(_obs(span_along=0.02, max_height=0.02, mean_size=0.02)))
+    lever = geo.hinge_height - 0.01
+    assert wide["theta_d"] == pytest.approx((geo.gap + 0.135 * 0.02 / 2) / lever, rel=1e-6)
+    assert wide["omega"] == pytest.approx(0.4, rel=1e-6)
+    assert wide["lift_speed"] == pytest.approx(0.04, rel=1e-6)
+    # A small piece gets the 0.7 mm floor, whatever its material.
+    small = action_to_physical(agent.act(_obs(span_along=0.006, max_height=0.006,
+                                              mean_size=0.006, K1=1e5, mu=0.7)))
+    lever = geo.hinge_height - 0.003
+    assert small["theta_d"] == pytest.approx((geo.gap + 0.0007) / lever, rel=1e-6)
+    assert agent.act(_obs(K1=50.0, mu=0.1)).tolist() == agent.act(_obs()).tolist()
 
 
 def test_model_based_falls_back_without_estimates() -> None:
