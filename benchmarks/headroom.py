@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import subprocess
 import sys
 import tempfile
@@ -107,6 +108,26 @@ def headroom(env_id: str, episodes: int, seed: int, workers: int, margin: float)
             "checks": checks, "all_hold": all(checks.values())}
 
 
+def _keep_added_agents(before: dict, after: dict) -> None:
+    """Carry the agents added beside the baselines (trained models, the size-only ablation)
+    into a rerun of the same scenes; on other scenes they no longer compare, and say so."""
+    added = [a for key in ("trained", "ablations") for a in before.get(key, {})]
+    if not added:
+        return
+    def scenes(r: dict) -> str:  # the command less its worker count, which changes nothing
+        return re.sub(r"--workers \d+ ", "", str(r.get("command")))
+
+    if scenes(before) != scenes(after):
+        print(f"note: {', '.join(added)} were measured on other scenes or settings and are "
+              "left out; rerun them on these", flush=True)
+        return
+    for key in ("trained", "ablations"):
+        if key in before:
+            after[key] = before[key]
+            for agent in before[key]:
+                after["agents"][agent] = before["agents"][agent]
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--ids", nargs="+", required=True)
@@ -120,8 +141,10 @@ def main() -> int:
     results = dict(old.get("results", {}))
     for env_id in args.ids:
         start = time.perf_counter()
+        before = results.get(env_id, {})
         results[env_id] = headroom(env_id, args.episodes, args.seed, args.workers, args.margin)
         results[env_id]["meta"] = {**meta(), "wall_s": round(time.perf_counter() - start, 1)}
+        _keep_added_agents(before, results[env_id])
         write_json(args.out, {"margin": args.margin, "results": results})
         r = results[env_id]
         print(f"{env_id}: all orderings hold: {r['all_hold']} ({r['checks']}); "

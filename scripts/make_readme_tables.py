@@ -31,7 +31,7 @@ README = ROOT / "README.md"
 DATA = ROOT / "docs" / "data"
 SOURCES = {"physics": DATA / "readme_physics.json", "headroom": DATA / "headroom.json",
            "speed": DATA / "readme_speed.json", "soak": DATA / "soak.json"}
-HEADROOM_AGENTS = ("random", "study", "model-based", "search", "ppo", "sac")
+HEADROOM_AGENTS = ("random", "study", "size-only", "model-based", "search", "ppo", "sac")
 TRAINED = ("ppo", "sac")
 
 
@@ -93,27 +93,31 @@ def headroom_table(data: dict[str, Any]) -> str:
     meta = first["meta"]
     runs = ", ".join(f"{env_id} at {r['meta']['commit']} ({r['meta']['wall_s']:.0f} s)"
                      for env_id, r in results.items())
-    return ("\n".join(rows) + f"\n\nMean reward [95 %] on {n} scenes per id from seed "
+    return ("\n".join(rows) + f"\n\nMean reward [95 %], {n} scenes per id from seed "
             f"{seed.group(1) if seed else '?'} (never tuned on); regret: search less "
-            "model-based, paired. Orderings: search beats study by at least "
-            f"{data['margin']:g}, model-based beats random and study, intervals apart. "
+            f"model-based, paired; orderings: search beats study by >= {data['margin']:g}, "
+            "model-based beats random and study, intervals apart. "
             f"{_machine(meta['machine'])}; {runs}: `python benchmarks/headroom.py --ids ID "
             "--episodes 200 --seed 80000 --workers 2`" + _trained_note(results))
 
 
 def _paired_note(trained: dict[str, Any]) -> str:
     d = trained.get("minus_model_based")
-    return "" if d is None else f", minus model-based {_mean_ci(d['mean'], d['ci95'])} paired"
+    return "" if d is None else f" ({_mean_ci(d['mean'], d['ci95'])} over model-based, paired)"
 
 
 def _trained_note(results: dict[str, Any]) -> str:
-    """How the learned agents in the table were trained (budget, wall time, script)."""
-    runs = [f"{a.upper()} on {env_id}: {t['timesteps']} fetches in "
+    """How the learned agents in the table were trained (budget, wall time, script), and the
+    size-only ablation against model-based."""
+    runs = [f"{a.upper()} on {env_id}: {t['timesteps']} fetches, "
             f"{t['train_wall_s'] / 60:.0f} min" + _paired_note(t)
             for env_id, r in results.items() for a, t in r.get("trained", {}).items()]
-    if not runs:
-        return ""
-    return (". Learned (`scripts/train_agent.sh ID ALGO`): " + "; ".join(runs) + ".")
+    ablations = [f"on {env_id}" + _paired_note(a) for env_id, r in results.items()
+                 if (a := r.get("ablations", {}).get("size-only"))]
+    text = "" if not runs else ". Learned (`scripts/train_agent.sh ID ALGO`): " + "; ".join(runs)
+    if ablations:
+        text += ". Size-only (camera sizes only): " + "; ".join(ablations)
+    return text + "." if text else ""
 
 
 def speed_table(data: dict[str, Any]) -> str:
