@@ -110,6 +110,8 @@ def measure(food: Food, preset: str, noise: float, seed: int, calibrate: bool = 
         "diagnostics": out.details.get("diagnostics", {}),
         "wall_probes": out.wall_time,
         "wall_fits": out.details.get("wall_fits", math.nan),
+        "cpu_probes": out.details.get("cpu_time", math.nan),
+        "cpu_fits": out.details.get("cpu_fits", math.nan),
         "wall_total": time.perf_counter() - t0,
     }
     rec["error"] = {k: _rel(out.estimates[k], truth[k]) for k in PARAM_NAMES}
@@ -154,6 +156,10 @@ def summarize(records: list[dict[str, Any]]) -> dict[str, Any]:
     out["wall_probes_max"] = float(np.max(walls)) if walls else math.nan
     out["wall_fits_median"] = float(np.median(fits)) if fits else math.nan
     out["wall_fits_max"] = float(np.max(fits)) if fits else math.nan
+    for key in ("cpu_probes", "cpu_fits"):  # what a food costs one core, whatever the load
+        values = [r[key] for r in ok if math.isfinite(r.get(key, math.nan))]
+        out[f"{key}_median"] = float(np.median(values)) if values else math.nan
+        out[f"{key}_max"] = float(np.max(values)) if values else math.nan
     return out
 
 
@@ -187,11 +193,24 @@ def table(summary: dict[str, Any], title: str) -> str:
               "foods with an error over 5 % flagged reliable; "
               f"{rel['under_2pct_flagged_unreliable']} of {rel['n_under_2pct']} with every "
               "error under 2 % flagged unreliable.",
-              f"probes: median {summary['wall_probes_median']:.2f} s, max "
-              f"{summary['wall_probes_max']:.2f} s a food; fits: median "
-              f"{1e3 * summary['wall_fits_median']:.1f} ms, max "
-              f"{1e3 * summary['wall_fits_max']:.1f} ms (one core each)."]
+              _speed_line(summary)]
     return "\n".join(lines) + "\n"
+
+
+def _speed_line(summary: dict[str, Any]) -> str:
+    """A food's cost: CPU time (what it costs one core, whatever else runs), and the wall
+    time the run saw; runs made before CPU time was recorded give the wall time only."""
+    wall = (f"probes median {summary['wall_probes_median']:.2f} s, max "
+            f"{summary['wall_probes_max']:.2f} s a food; fits median "
+            f"{1e3 * summary['wall_fits_median']:.1f} ms, max "
+            f"{1e3 * summary['wall_fits_max']:.1f} ms")
+    if not math.isfinite(summary.get("cpu_fits_median", math.nan)):
+        return f"{wall} (wall time, one core each)."
+    return (f"CPU time a food: probes median {summary['cpu_probes_median']:.2f} s, max "
+            f"{summary['cpu_probes_max']:.2f} s; fits (both estimators, intervals, "
+            f"calibration) median {1e3 * summary['cpu_fits_median']:.1f} ms, max "
+            f"{1e3 * summary['cpu_fits_max']:.1f} ms, a worker's first fit included. Wall "
+            f"time, as the machine was loaded: {wall}.")
 
 
 def _write_atomic(path: Path, text: str) -> None:
