@@ -50,6 +50,24 @@ def test_paired_difference_is_the_mean_difference_with_a_t_interval() -> None:
                       "model_based_above_random": True, "model_based_above_study": True}
 
 
+def test_a_rerun_keeps_added_agents_only_on_the_same_scenes(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Trained and ablation agents survive a rerun of the same scenes (the worker count
+    changes nothing), and are dropped with a note when the scenes differ."""
+    h = _headroom_module()
+    base = "food-fetch evaluate --env E --episodes 200 --seed 80000 --workers 2 --json FILE"
+    before = {"command": base, "agents": {"sac": {"reward_mean": 0.9}, "size-only": {}},
+              "trained": {"sac": {"timesteps": 10}}, "ablations": {"size-only": {}}}
+    same = {"command": base.replace("--workers 2", "--workers 1"), "agents": {}}
+    h._keep_added_agents(before, same)
+    assert set(same["agents"]) == {"sac", "size-only"}
+    assert same["trained"] == before["trained"] and same["ablations"] == before["ablations"]
+    other = {"command": base.replace("--seed 80000", "--seed 81000"), "agents": {}}
+    h._keep_added_agents(before, other)
+    assert other == {"command": other["command"], "agents": {}}
+    assert "sac, size-only were measured on other scenes" in capsys.readouterr().out
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("env_id", sorted(COMMITTED["results"]))
 def test_orderings_hold_on_other_scenes(env_id: str) -> None:
