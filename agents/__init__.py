@@ -1,9 +1,9 @@
 """The agents that choose the clamp angle and speeds, their training and evaluation.
 
 The agents share :class:`agents.base.Agent` (``act(obs) -> action``); :func:`make_agent` builds
-one by name (``random``, ``study``, ``model-based``, ``search``) or from a model saved by
-``food-fetch train``.  Subpackages: :mod:`agents.cli` (the ``food-fetch`` command) and
-:mod:`agents.study` (the study's reproductions).  Names are imported on first use, so
+one by name (``random``, ``study``, ``size-only``, ``model-based``, ``search``) or from a
+model saved by ``food-fetch train``.  Subpackages: :mod:`agents.cli` (the ``food-fetch``
+command) and :mod:`agents.study` (the study's reproductions).  Names are imported on first use, so
 ``import agents`` stays light (no MuJoCo, no torch).
 """
 
@@ -20,6 +20,7 @@ _EXPORTS: dict[str, str] = {
     "RandomAgent": "agents.baselines",
     "SB3Agent": "agents.sb3_agent",
     "SearchAgent": "agents.search",
+    "SizeOnlyAgent": "agents.baselines",
     "StudyAgent": "agents.baselines",
     "make_agent": "agents.evaluate",
 }

@@ -108,18 +108,24 @@ def headroom(env_id: str, episodes: int, seed: int, workers: int, margin: float)
             "checks": checks, "all_hold": all(checks.values())}
 
 
-def _keep_added_agents(before: dict, after: dict) -> None:
+def _keep_added_agents(before: dict[str, Any], after: dict[str, Any]) -> None:
     """Carry the agents added beside the baselines (trained models, the size-only ablation)
-    into a rerun of the same scenes; on other scenes they no longer compare, and say so."""
+    into a rerun of the same scenes; their paired differences to model-based hold only while
+    model-based scores what it did, so on other scenes or another model-based they are left
+    out, with a note."""
     added = [a for key in ("trained", "ablations") for a in before.get(key, {})]
     if not added:
         return
-    def scenes(r: dict) -> str:  # the command less its worker count, which changes nothing
+
+    def scenes(r: dict[str, Any]) -> str:  # the command less its worker count
         return re.sub(r"--workers \d+ ", "", str(r.get("command")))
 
-    if scenes(before) != scenes(after):
-        print(f"note: {', '.join(added)} were measured on other scenes or settings and are "
-              "left out; rerun them on these", flush=True)
+    def model_based(r: dict[str, Any]) -> object:
+        return r.get("agents", {}).get("model-based", {}).get("reward_mean")
+
+    if scenes(before) != scenes(after) or model_based(before) != model_based(after):
+        print(f"note: {', '.join(added)} were measured on other scenes or against another "
+              "model-based and are left out; rerun them", flush=True)
         return
     for key in ("trained", "ablations"):
         if key in before:

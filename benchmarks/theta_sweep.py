@@ -9,8 +9,10 @@ every clamp angle of ``--thetas`` with the fastest clamp and lift (0.4 rad/s, 40
 -v1 ids' time cost favours), and the reward, its terms, the largest strain and which pieces were
 fetched are recorded.  The summary gives the mean reward of each constant angle and of the
 per-scene best angle: where one constant angle is as good as the per-scene best, the id does
-not reward choosing the action from the observation (the headroom a benchmark needs, issue
-item "no single fixed action is near the best on every scene").
+not reward choosing the action from the observation (a benchmark needs scenes where no
+single fixed action is near the best).  ``--rules`` scores two rules on a finished sweep:
+a squeeze sized from the camera's width alone (``agents.baselines.SizeOnlyAgent``'s band),
+and the same with a damage threshold that falls with stiffness.
 
 The JSON (default ``docs/data/theta_sweep/<id>.json``) is rewritten atomically after every
 scene, so a stopped run keeps what finished.
@@ -34,10 +36,14 @@ import numpy as np
 
 import fetch_env  # noqa: F401  (registers the ids)
 from fetch_env.env import decode_observation, physical_to_action
+from fetch_env.scene import Geometry
 
 ROOT = Path(__file__).resolve().parents[1]
 OMEGA, LIFT_SPEED = 0.4, 0.04  # [rad/s], [m/s]: the action's fastest
 THETAS = tuple(round(0.03 + 0.01 * i, 3) for i in range(9))  # [rad] 0.03 to 0.11
+DATA = ROOT / "docs" / "data" / "theta_sweep"
+DOC = ROOT / "docs" / "agents.md"
+MARK = ("<!-- theta-sweep-table -->", "<!-- /theta-sweep-table -->")
 
 
 def _seed_range(text: str) -> range:
@@ -46,7 +52,8 @@ def _seed_range(text: str) -> range:
     except ValueError:
         raise argparse.ArgumentTypeError(f"--seeds must be LO:HI, got {text!r}") from None
     if not 0 <= lo < hi <= 2**32:
-        raise argparse.ArgumentTypeError(f"--seeds must satisfy 0 <= LO < HI, got {text!r}")
+        raise argparse.ArgumentTypeError(
+            f"--seeds must satisfy 0 <= LO < HI <= 2**32, got {text!r}")
     return range(lo, hi)
 
 
@@ -94,11 +101,6 @@ def summarize(records: list[dict[str, Any]]) -> dict[str, Any]:
             "per_scene_best_mean": round(float(best.mean()), 4)}
 
 
-DATA = ROOT / "docs" / "data" / "theta_sweep"
-DOC = ROOT / "docs" / "agents.md"
-MARK = ("<!-- theta-sweep-table -->", "<!-- /theta-sweep-table -->")
-
-
 def table_markdown(folder: Path = DATA) -> str:
     """The docs table: per swept id, the best constant angle against the per-scene best."""
     lines = ["| id | best constant theta_d | its mean reward | per-scene best | scenes where "
@@ -114,10 +116,44 @@ def table_markdown(folder: Path = DATA) -> str:
 
 
 def write_table(doc: Path = DOC) -> None:
+    """Rewrite the table between ``MARK`` in ``doc`` from the JSON files."""
     text = doc.read_text()
     head, rest = text.split(MARK[0], 1)
     _, tail = rest.split(MARK[1], 1)
     doc.write_text(f"{head}{MARK[0]}\n{table_markdown()}\n{MARK[1]}{tail}")
+
+
+def failure_strain(young: float) -> float:
+    """A damage threshold that falls with stiffness: 0.34 at the study's 0.2 MPa, 0.171 lower
+    a decade stiffer, within [0.08, 0.5] (0.5 at 0.0123 MPa, about 0.1 at 5 MPa)."""
+    return float(np.clip(0.34 - 0.171 * np.log10(young / 0.2e6), 0.08, 0.5))
+
+
+def rule_scores(records: list[dict[str, Any]], eps: float = 0.135,
+                dx_min: float = 0.0007) -> dict[str, float]:
+    """Mean reward, read off the sweep's grid, of the angle nearest a squeeze of ``eps`` of the
+    width with at least ``dx_min`` a face (``SizeOnlyAgent``), with the -v1 damage and with
+    :func:`failure_strain` in place of the 0.34 threshold (single-piece scenes), against the
+    per-scene best under each."""
+    geo = Geometry()
+    v1, fail, best_v1, best_fail = [], [], [], []
+    for rec in records:
+        o = rec["obs"]
+        thetas = np.array([row["theta"] for row in rec["sweep"]])
+        dx = (geo.hinge_height - o["max_height"] / 2) * thetas - geo.gap
+        miss = np.where(dx >= dx_min, np.abs(2 * dx / o["span_along"] - eps), np.inf)
+        i = int(np.argmin(miss))
+        limit = failure_strain(rec["young"][0])
+        r_fail = [row["fetch"] - 5 * min(1.0, max(0.0, row["le"] - limit)) + row["time"]
+                  for row in rec["sweep"]]
+        r_v1 = [row["r"] for row in rec["sweep"]]
+        v1.append(r_v1[i])
+        fail.append(r_fail[i])
+        best_v1.append(max(r_v1))
+        best_fail.append(max(r_fail))
+    return {"size_only": float(np.mean(v1)), "per_scene_best": float(np.mean(best_v1)),
+            "size_only_failure_strain": float(np.mean(fail)),
+            "per_scene_best_failure_strain": float(np.mean(best_fail))}
 
 
 def write_atomic(path: Path, data: dict[str, Any]) -> None:
@@ -126,37 +162,20 @@ def write_atomic(path: Path, data: dict[str, Any]) -> None:
     os.replace(tmp, path)
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--env", help="a registered FoodFetch id")
-    p.add_argument("--table", action="store_true",
-                   help="only rewrite docs/agents.md's table from docs/data/theta_sweep/")
-    p.add_argument("--seeds", type=_seed_range, default=range(100, 140), help="LO:HI")
-    p.add_argument("--thetas", type=_thetas, default=THETAS, help="comma-separated [rad]")
-    p.add_argument("--out", type=Path, default=None)
-    args = p.parse_args(argv)
-    if args.table:
-        write_table()
-        return 0
-    if args.env is None:
-        p.error("--env ID is needed (or --table)")
-    if args.env not in gym.registry:
-        p.error(f"unknown env id {args.env!r}")
-    out = args.out or ROOT / "docs" / "data" / "theta_sweep" / f"{args.env}.json"
+def run_sweep(env_id: str, seeds: range, thetas: tuple[float, ...], out: Path,
+              command: str) -> dict[str, Any]:
+    """Sweep every seed's scene, rewriting ``out`` after each; returns the finished data."""
     out.parent.mkdir(parents=True, exist_ok=True)
-    warnings.simplefilter("ignore")  # clipping and version notes: every value is in the JSON
-    env = gym.make(args.env)
+    env = gym.make(env_id)
     records: list[dict[str, Any]] = []
     data: dict[str, Any] = {
-        "env_id": args.env, "omega": OMEGA, "lift_speed": LIFT_SPEED,
-        "command": "python benchmarks/theta_sweep.py " + " ".join(sys.argv[1:] if argv is None
-                                                                   else argv),
+        "env_id": env_id, "omega": OMEGA, "lift_speed": LIFT_SPEED, "command": command,
         "machine": {"machine": platform.machine(), "cpus": os.cpu_count(),
                     "python": platform.python_version(), "mujoco": mujoco.__version__},
         "complete": False}
     start = time.perf_counter()
-    for seed in args.seeds:
-        records.append(sweep_scene(env, seed, args.thetas))
+    for seed in seeds:
+        records.append(sweep_scene(env, seed, thetas))
         data.update(summary=summarize(records), records=records,
                     wall_s=round(time.perf_counter() - start, 1))
         write_atomic(out, data)
@@ -164,7 +183,38 @@ def main(argv: list[str] | None = None) -> int:
         print(f"seed {seed}: {rs}", flush=True)
     data["complete"] = True
     write_atomic(out, data)
-    s = data["summary"]
+    return data
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--env", help="a registered FoodFetch id")
+    p.add_argument("--seeds", type=_seed_range, default=range(100, 140), help="LO:HI")
+    p.add_argument("--thetas", type=_thetas, default=THETAS, help="comma-separated [rad]")
+    p.add_argument("--out", type=Path, default=None)
+    p.add_argument("--table", action="store_true",
+                   help="only rewrite docs/agents.md's table from docs/data/theta_sweep/")
+    p.add_argument("--rules", type=Path, metavar="JSON",
+                   help="only print the rule scores (rule_scores) of a finished sweep")
+    args = p.parse_args(argv)
+    if args.table:
+        write_table()
+        return 0
+    if args.rules is not None:
+        scores = rule_scores(json.loads(args.rules.read_text())["records"])
+        print(" ".join(f"{k} {v:+.3f}" for k, v in scores.items()))
+        return 0
+    if args.env is None:
+        p.error("--env ID is needed (or --table, --rules)")
+    if args.env not in gym.registry:
+        p.error(f"unknown env id {args.env!r}")
+    # Clipping notes and gymnasium's version notes: every value is in the JSON.
+    warnings.filterwarnings("ignore", category=UserWarning)
+    warnings.filterwarnings("ignore", category=DeprecationWarning)
+    out = args.out or DATA / f"{args.env}.json"
+    command = "python benchmarks/theta_sweep.py " + " ".join(sys.argv[1:] if argv is None
+                                                             else argv)
+    s = run_sweep(args.env, args.seeds, args.thetas, out, command)["summary"]
     print(f"{args.env}: best constant theta_d {s['best_constant']} rad: "
           f"{s['best_constant_mean']:+.3f}; per-scene best {s['per_scene_best_mean']:+.3f} "
           f"({s['scenes']} scenes) -> {out}")

@@ -48,7 +48,7 @@ class FoodFetchTwoRowsV1Env(FoodFetchEnv):
         "one of the study's five stiffness levels (0.0123 to 200 MPa) with viscoelasticity "
         "and friction from the food space: soft rows are crushed by a firm clamp.  Known "
         "limit: 0.0123 MPa cubes packed this close are flung apart at squeezes of 5-15 % in "
-        "a way that changes with the step, so about a fifth of the scenes are a lottery for "
+        "a way that changes with the step, so one scene in five is a lottery for "
         "any agent (docs/agents.md, 'How much choosing the angle is worth').",
         "two_rows", "v1")
 

@@ -112,11 +112,11 @@ def _trained_note(results: dict[str, Any]) -> str:
     runs = [f"{a.upper()} on {env_id}: {t['timesteps']} fetches, "
             f"{t['train_wall_s'] / 60:.0f} min" + _paired_note(t)
             for env_id, r in results.items() for a, t in r.get("trained", {}).items()]
-    ablations = [f"on {env_id}" + _paired_note(a) for env_id, r in results.items()
+    ablations = [f"{env_id}" + _paired_note(a) for env_id, r in results.items()
                  if (a := r.get("ablations", {}).get("size-only"))]
     text = "" if not runs else ". Learned (`scripts/train_agent.sh ID ALGO`): " + "; ".join(runs)
     if ablations:
-        text += ". Size-only (camera sizes only): " + "; ".join(ablations)
+        text += ". Size-only (sizes alone): " + "; ".join(ablations)
     return text + "." if text else ""
 
 

@@ -56,16 +56,18 @@ def test_a_rerun_keeps_added_agents_only_on_the_same_scenes(
     changes nothing), and are dropped with a note when the scenes differ."""
     h = _headroom_module()
     base = "food-fetch evaluate --env E --episodes 200 --seed 80000 --workers 2 --json FILE"
-    before = {"command": base, "agents": {"sac": {"reward_mean": 0.9}, "size-only": {}},
+    mb = {"model-based": {"reward_mean": 0.8}}
+    before = {"command": base, "agents": {**mb, "sac": {"reward_mean": 0.9}, "size-only": {}},
               "trained": {"sac": {"timesteps": 10}}, "ablations": {"size-only": {}}}
-    same = {"command": base.replace("--workers 2", "--workers 1"), "agents": {}}
+    same = {"command": base.replace("--workers 2", "--workers 1"), "agents": dict(mb)}
     h._keep_added_agents(before, same)
-    assert set(same["agents"]) == {"sac", "size-only"}
+    assert set(same["agents"]) == {"model-based", "sac", "size-only"}
     assert same["trained"] == before["trained"] and same["ablations"] == before["ablations"]
-    other = {"command": base.replace("--seed 80000", "--seed 81000"), "agents": {}}
-    h._keep_added_agents(before, other)
-    assert other == {"command": other["command"], "agents": {}}
-    assert "sac, size-only were measured on other scenes" in capsys.readouterr().out
+    for other in ({"command": base.replace("--seed 80000", "--seed 81000"), "agents": dict(mb)},
+                  {"command": base, "agents": {"model-based": {"reward_mean": 0.85}}}):
+        h._keep_added_agents(before, other)
+        assert set(other) == {"command", "agents"} and "sac" not in other["agents"]
+        assert "sac, size-only were measured on other scenes" in capsys.readouterr().out
 
 
 @pytest.mark.slow
