@@ -20,9 +20,11 @@ class FoodFetchBlockV1Env(FoodFetchEnv):
         "FoodFetch-Block-v1: fetch one food piece of any size, stiffness and friction.",
         "One piece (cube, ellipsoid or sphere) from the food space the estimators are "
         "validated on: 8 to 25 mm, very soft to firm (0.0123 to 5 MPa), slippery to grippy "
-        "(mu 0.1 to 0.8).  A small soft piece is crushed by the squeeze that holds a large "
-        "slippery one, so the clamp angle must follow the size, stiffness and friction the "
-        "probes measure; the time cost rewards the fastest clamp and lift that still hold.",
+        "(mu 0.1 to 0.8).  A small piece is crushed by the angle that holds a large one, so "
+        "the clamp angle must follow the piece's size; the time cost rewards the fastest "
+        "clamp and lift that still hold.  Known limit: the stiffness and friction the probes "
+        "measure change the best angle little here (an agent that sees only the sizes comes "
+        "within 0.03 of search; docs/agents.md, 'How much choosing the angle is worth').",
         "block", "v1")
 
     __init__ = _with_defaults("block", "v1")
