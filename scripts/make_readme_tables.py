@@ -141,24 +141,28 @@ def speed_table(data: dict[str, Any]) -> str:
 
 
 def soak_table(data: dict[str, Any]) -> str:
-    rows = ["| id | episodes | RSS MiB, early -> late | CPU s/episode | early rerun |",
-            "|---|---|---|---|---|"]
+    counts = {run["summary"]["episodes"] for run in data["ids"].values()}
+    per_id = len(counts) > 1  # an episodes column only where the runs differ in length
+    rows = ["| id |" + (" episodes |" if per_id else "")
+            + " RSS, late - early | CPU per episode, late / early | early rerun |",
+            "|---" * (5 if per_id else 4) + "|"]
     for env_id, run in data["ids"].items():
         s, again = run["summary"], run["replay"]
-        rows.append(f"| {env_id.removeprefix('FoodFetch-')} | {s['episodes']} | "
-                    f"{s['rss_median_early_mib']:.0f} -> {s['rss_median_late_mib']:.0f} | "
-                    f"{s['episode_cpu_s_median_early']:.2f} -> "
-                    f"{s['episode_cpu_s_median_late']:.2f} | "
-                    f"{again['median_paired_change_pct']:+.1f} % |")
+        cpu = s["episode_cpu_s_median_late"] / s["episode_cpu_s_median_early"] - 1
+        rows.append(f"| {env_id.removeprefix('FoodFetch-')} | "
+                    + (f"{s['episodes']} | " if per_id else "")
+                    + f"{s['rss_median_late_mib'] - s['rss_median_early_mib']:+.1f} MiB | "
+                    f"{100 * cpu:+.1f} % | {again['median_paired_change_pct']:+.1f} % |")
     machines: dict[str, list[str]] = {}
     for env_id, run in data["ids"].items():  # ids soaked on another machine name it
         machine = _machine(run.get("machine", data["machine"]["machine"]))
         machines.setdefault(machine, []).append(
             env_id.removeprefix("FoodFetch-"))
     where = "; ".join(f"{', '.join(ids)} on {m}" for m, ids in machines.items())
-    return ("\n".join(rows) + "\n\nMedians over the second and last tenths of one process's "
-            f"episodes (the last column reruns the early ones at the end); {where}: "
-            "`python benchmarks/soak.py --env ID`")
+    runs = "" if per_id else f"{counts.pop()} episodes an id in one process; "
+    return ("\n".join(rows) + f"\n\n{runs}medians of the second and last tenths (limits: "
+            "20 MiB, +10 %); the rerun repeats the early episodes at the end; "
+            f"{where}: `python benchmarks/soak.py --env ID`")
 
 
 TABLES: dict[str, Callable[[dict[str, Any]], str]] = {
