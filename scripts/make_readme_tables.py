@@ -144,7 +144,7 @@ def soak_table(data: dict[str, Any]) -> str:
     counts = {run["summary"]["episodes"] for run in data["ids"].values()}
     per_id = len(counts) > 1  # an episodes column only where the runs differ in length
     rows = ["| id |" + (" episodes |" if per_id else "")
-            + " RSS, late - early | CPU per episode, late / early | early rerun |",
+            + " RSS, late - early | CPU/episode, late / early | early rerun |",
             "|---" * (5 if per_id else 4) + "|"]
     for env_id, run in data["ids"].items():
         s, again = run["summary"], run["replay"]
@@ -158,10 +158,13 @@ def soak_table(data: dict[str, Any]) -> str:
         machine = _machine(run.get("machine", data["machine"]["machine"]))
         machines.setdefault(machine, []).append(
             env_id.removeprefix("FoodFetch-"))
-    where = "; ".join(f"{', '.join(ids)} on {m}" for m, ids in machines.items())
-    runs = "" if per_id else f"{counts.pop()} episodes an id in one process; "
+    most = max(machines, key=lambda m: len(machines[m]))
+    where = "; ".join(f"{', '.join(ids)} on {m}" for m, ids in machines.items() if m != most)
+    where += ("; the others" if len(machines) > 1 else "") + f" on {most}"
+    where = where.removeprefix("; ").removeprefix(" on ")
+    runs = "" if per_id else f"{counts.pop()} episodes an id, one process; "
     return ("\n".join(rows) + f"\n\n{runs}medians of the second and last tenths (limits: "
-            "20 MiB, +10 %); the rerun repeats the early episodes at the end; "
+            "20 MiB, +10 %); the rerun repeats the early episodes last; "
             f"{where}: `python benchmarks/soak.py --env ID`")
 
 
