@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from agents.base import Agent
+from agents.model_based import clamp_angle
 from fetch_env.env import ACTION_RANGES, decode_observation, physical_to_action
 from fetch_env.scene import Geometry
 
@@ -61,10 +62,11 @@ class SizeOnlyAgent(Agent):
 
     With the geometry of :mod:`agents.model_based` (each face presses ``dx = L theta_d -
     gap`` into the food, ``L`` the hinge's height over the food's mid-height), ``theta_d =
-    (gap + max(eps w / 2, dx_min)) / L``.  The band (12-15 % of the width, 0.7 mm) is read off
-    the FoodFetch-Block-v1 tuning sweep (seeds 100-139, ``benchmarks/theta_sweep.py``): every
-    piece there, whatever its stiffness and friction, is held and spared by a squeeze in it,
-    because the closing faces' V holds a piece that slips and the -v1 damage is a strain.
+    clamp_angle(geometry, height, max(eps w / 2, dx_min))``.  The band (12-15 % of the
+    width, 0.7 mm) is read off the FoodFetch-Block-v1 tuning sweep (seeds 100-139,
+    ``benchmarks/theta_sweep.py``): every piece there, whatever its stiffness and friction,
+    is held and spared by a squeeze in it, because the closing faces' V holds a piece that
+    slips and the -v1 damage is a strain.
     """
 
     name = "size-only"
@@ -77,10 +79,9 @@ class SizeOnlyAgent(Agent):
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         d = decode_observation(obs)
-        geo = self.geometry
         width = float(d["span_along"]) if d["span_along"] > 0 else float(d["mean_size"])
-        lever = geo.hinge_height - float(d["max_height"]) / 2
-        theta = (geo.gap + max(self.eps * width / 2, self.dx_min)) / lever
+        theta = clamp_angle(self.geometry, float(d["max_height"]),
+                            max(self.eps * width / 2, self.dx_min))
         lo, hi = ACTION_RANGES["theta_d"]
         return physical_to_action(float(np.clip(theta, lo, hi)), ACTION_RANGES["omega"][1],
                                   ACTION_RANGES["lift_speed"][1])

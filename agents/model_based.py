@@ -125,7 +125,7 @@ class ModelBasedAgent(Agent):
         d = decode_observation(obs)
         height = float(d["max_height"])
         w = float(d["span_along"]) if d["span_along"] > 0 else float(d["mean_size"])
-        L = geo.hinge_height - height / 2
+        L = lever(geo, height)
         # Mass held: all the pieces (conservative for a mix, where some may escape).
         mass = float(d["total_mass"])
 
@@ -173,7 +173,7 @@ class ModelBasedAgent(Agent):
             if dx_grip <= dx_stall < dx:
                 dx, eps = dx_stall, 2.0 * dx_stall / w
                 limited = "squeeze lowered to keep the fast clamp under the motor's stall"
-        theta = (geo.gap + dx) / L
+        theta = clamp_angle(geo, height, dx)
         lo, hi = ACTION_RANGES["theta_d"]
         theta = float(np.clip(theta, lo, hi))
 
@@ -215,6 +215,21 @@ class ModelBasedAgent(Agent):
 
     def describe(self) -> dict[str, Any]:
         return {"name": self.name, **asdict(self.config)}
+
+
+def lever(geometry: Geometry, max_height: float) -> float:
+    """L [m]: the hinge's height over the food's mid-height, where each face presses in."""
+    return geometry.hinge_height - max_height / 2
+
+
+def face_squeeze(geometry: Geometry, max_height: float, theta_d: Any) -> Any:
+    """dx [m]: how far each face presses into the food at ``theta_d`` [rad] (array or float)."""
+    return lever(geometry, max_height) * theta_d - geometry.gap
+
+
+def clamp_angle(geometry: Geometry, max_height: float, dx: float) -> float:
+    """theta_d [rad] at which each face presses ``dx`` [m] into the food."""
+    return (geometry.gap + dx) / lever(geometry, max_height)
 
 
 def _maxwell_share(duration: float, tau1: float) -> float:

@@ -6,13 +6,12 @@ Run: python benchmarks/model_based_tuning.py --env FoodFetch-TwoRows-v1 \\
 Each value runs ``ModelBasedAgent(ModelBasedConfig(field=value))`` on the scenes
 ``reset(seed=s)`` of the tuning seeds (default 100-139, never the reporting seeds from 80000)
 and records every scene's reward, clamp angle and the mean with its 95 % interval (Student t).
+The JSON is rewritten atomically after each value, so a stopped run keeps what finished.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import sys
 import warnings
 from pathlib import Path
@@ -26,6 +25,10 @@ import fetch_env  # noqa: F401  (registers the ids)
 from agents.model_based import ModelBasedAgent, ModelBasedConfig
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from benchmarks.readme_meta import meta, write_json  # noqa: E402
+from benchmarks.theta_sweep import seed_range  # noqa: E402
 
 
 def run_value(env: gym.Env, field: str, value: float, seeds: range) -> dict[str, Any]:
@@ -50,29 +53,30 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--env", required=True)
     p.add_argument("--field", required=True, help="a ModelBasedConfig field")
     p.add_argument("--values", required=True, help="comma-separated numbers")
-    p.add_argument("--seeds", default="100:140", help="LO:HI (default 100:140)")
+    p.add_argument("--seeds", type=seed_range, default=range(100, 140),
+                   help="LO:HI (default 100:140)")
     p.add_argument("--out", type=Path, default=None)
     args = p.parse_args(argv)
-    lo, hi = (int(x) for x in args.seeds.split(":"))
-    values = [float(v) for v in args.values.split(",")]
+    try:
+        values = [float(v) for v in args.values.split(",")]
+    except ValueError:
+        p.error(f"--values must be numbers, got {args.values!r}")
     if args.field not in ModelBasedConfig.__dataclass_fields__:
         p.error(f"unknown ModelBasedConfig field {args.field!r}")
     out = args.out or ROOT / "docs" / "data" / "tuning" / f"{args.env}_{args.field}.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
     warnings.filterwarnings("ignore", module="gymnasium")
     env = gym.make(args.env)
-    runs = []
+    data: dict[str, Any] = {"env_id": args.env, "field": args.field,
+                            "seeds": f"{args.seeds.start}-{args.seeds.stop - 1}",
+                            "meta": meta(), "runs": [], "complete": False}
     for value in values:
-        runs.append(run_value(env, args.field, value, range(lo, hi)))
-        ci = runs[-1]["reward_ci95"]
-        print(f"{args.field}={value:g}: {runs[-1]['reward_mean']:+.3f} "
-              f"[{ci[0]:+.3f}, {ci[1]:+.3f}]", flush=True)
-    data = {"env_id": args.env, "field": args.field, "seeds": f"{lo}-{hi - 1}",
-            "command": "python benchmarks/model_based_tuning.py " + " ".join(
-                sys.argv[1:] if argv is None else argv), "runs": runs}
-    tmp = out.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(data, indent=1) + "\n")
-    os.replace(tmp, out)
+        data["runs"].append(run_value(env, args.field, value, args.seeds))
+        write_json(out, data)
+        run = data["runs"][-1]
+        print(f"{args.field}={value:g}: {run['reward_mean']:+.3f} "
+              f"[{run['reward_ci95'][0]:+.3f}, {run['reward_ci95'][1]:+.3f}]", flush=True)
+    data["complete"] = True
+    write_json(out, data)
     return 0
 
 

@@ -22,8 +22,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import sys
 import time
 import warnings
@@ -31,7 +29,6 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 
 import fetch_env  # noqa: F401  (registers the ids)
@@ -39,6 +36,11 @@ from fetch_env.env import decode_observation, physical_to_action
 from fetch_env.scene import Geometry
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from agents.model_based import face_squeeze  # noqa: E402
+from benchmarks.readme_meta import meta, write_json  # noqa: E402
+
 OMEGA, LIFT_SPEED = 0.4, 0.04  # [rad/s], [m/s]: the action's fastest
 THETAS = tuple(round(0.03 + 0.01 * i, 3) for i in range(9))  # [rad] 0.03 to 0.11
 DATA = ROOT / "docs" / "data" / "theta_sweep"
@@ -46,14 +48,14 @@ DOC = ROOT / "docs" / "agents.md"
 MARK = ("<!-- theta-sweep-table -->", "<!-- /theta-sweep-table -->")
 
 
-def _seed_range(text: str) -> range:
+def seed_range(text: str) -> range:
     try:
         lo, hi = (int(x) for x in text.split(":"))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"--seeds must be LO:HI, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"seeds must be LO:HI, got {text!r}") from None
     if not 0 <= lo < hi <= 2**32:
         raise argparse.ArgumentTypeError(
-            f"--seeds must satisfy 0 <= LO < HI <= 2**32, got {text!r}")
+            f"seeds must satisfy 0 <= LO < HI <= 2**32, got {text!r}")
     return range(lo, hi)
 
 
@@ -140,7 +142,7 @@ def rule_scores(records: list[dict[str, Any]], eps: float = 0.135,
     for rec in records:
         o = rec["obs"]
         thetas = np.array([row["theta"] for row in rec["sweep"]])
-        dx = (geo.hinge_height - o["max_height"] / 2) * thetas - geo.gap
+        dx = face_squeeze(geo, o["max_height"], thetas)
         miss = np.where(dx >= dx_min, np.abs(2 * dx / o["span_along"] - eps), np.inf)
         i = int(np.argmin(miss))
         limit = failure_strain(rec["young"][0])
@@ -156,40 +158,30 @@ def rule_scores(records: list[dict[str, Any]], eps: float = 0.135,
             "per_scene_best_failure_strain": float(np.mean(best_fail))}
 
 
-def write_atomic(path: Path, data: dict[str, Any]) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1) + "\n")
-    os.replace(tmp, path)
-
-
-def run_sweep(env_id: str, seeds: range, thetas: tuple[float, ...], out: Path,
-              command: str) -> dict[str, Any]:
+def run_sweep(env_id: str, seeds: range, thetas: tuple[float, ...],
+              out: Path) -> dict[str, Any]:
     """Sweep every seed's scene, rewriting ``out`` after each; returns the finished data."""
-    out.parent.mkdir(parents=True, exist_ok=True)
     env = gym.make(env_id)
     records: list[dict[str, Any]] = []
-    data: dict[str, Any] = {
-        "env_id": env_id, "omega": OMEGA, "lift_speed": LIFT_SPEED, "command": command,
-        "machine": {"machine": platform.machine(), "cpus": os.cpu_count(),
-                    "python": platform.python_version(), "mujoco": mujoco.__version__},
-        "complete": False}
+    data: dict[str, Any] = {"env_id": env_id, "omega": OMEGA, "lift_speed": LIFT_SPEED,
+                            "meta": meta(), "complete": False}
     start = time.perf_counter()
     for seed in seeds:
         records.append(sweep_scene(env, seed, thetas))
         data.update(summary=summarize(records), records=records,
                     wall_s=round(time.perf_counter() - start, 1))
-        write_atomic(out, data)
+        write_json(out, data)
         rs = " ".join(f"{row['r']:+.2f}" for row in records[-1]["sweep"])
         print(f"seed {seed}: {rs}", flush=True)
     data["complete"] = True
-    write_atomic(out, data)
+    write_json(out, data)
     return data
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--env", help="a registered FoodFetch id")
-    p.add_argument("--seeds", type=_seed_range, default=range(100, 140), help="LO:HI")
+    p.add_argument("--seeds", type=seed_range, default=range(100, 140), help="LO:HI")
     p.add_argument("--thetas", type=_thetas, default=THETAS, help="comma-separated [rad]")
     p.add_argument("--out", type=Path, default=None)
     p.add_argument("--table", action="store_true",
@@ -212,9 +204,7 @@ def main(argv: list[str] | None = None) -> int:
     warnings.filterwarnings("ignore", category=UserWarning)
     warnings.filterwarnings("ignore", category=DeprecationWarning)
     out = args.out or DATA / f"{args.env}.json"
-    command = "python benchmarks/theta_sweep.py " + " ".join(sys.argv[1:] if argv is None
-                                                             else argv)
-    s = run_sweep(args.env, args.seeds, args.thetas, out, command)["summary"]
+    s = run_sweep(args.env, args.seeds, args.thetas, out)["summary"]
     print(f"{args.env}: best constant theta_d {s['best_constant']} rad: "
           f"{s['best_constant_mean']:+.3f}; per-scene best {s['per_scene_best_mean']:+.3f} "
           f"({s['scenes']} scenes) -> {out}")

@@ -14,14 +14,14 @@ Two checks, at the fastest clamp and lift (0.4 rad/s, 40 mm/s), on FoodFetch-Two
    outcome is the physics' or the numerics'.
 
 Each fetch's reward, fetch rate, largest LE in the clamp and hold, and the farthest piece's
-final distance across the clamp are written to the JSON.
+final distance across the clamp are written to the JSON, rewritten atomically after each
+check so that a stopped run keeps what finished.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import os
+import sys
 import warnings
 from pathlib import Path
 from typing import Any
@@ -34,6 +34,10 @@ from fetch_env.layouts import Piece, grid, single_block
 from fetch_env.materials import PRESETS
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from benchmarks.readme_meta import meta, write_json  # noqa: E402
+
 ENV_ID = "FoodFetch-TwoRows-v1"
 SOFT = PRESETS["very-soft-0.0123MPa"]
 THETAS = (0.04, 0.05, 0.06, 0.07, 0.09)  # [rad]
@@ -90,19 +94,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=ROOT / "docs" / "data" / "very_soft_plates.json")
     args = p.parse_args(argv)
     warnings.filterwarnings("ignore", category=UserWarning)  # clipping notes: in the JSON
-    data = {"env_id": ENV_ID, "command": "python benchmarks/very_soft_plates.py",
-            "arrangements": arrangements(), "settings": settings()}
+    data: dict[str, Any] = {"env_id": ENV_ID, "meta": meta(), "complete": False}
+    data["arrangements"] = arrangements()
+    write_json(args.out, data)
     for row in data["arrangements"]:
         print(f"{row['plate']:28s}", " ".join(
             f"{f['theta']}: LE {f['le_max']:.2f} x {f['farthest_x_mm']:.0f} mm"
-            for f in row["fetches"]))
+            for f in row["fetches"]), flush=True)
+    data["settings"] = settings()
+    data["complete"] = True
+    write_json(args.out, data)
     for row in data["settings"]:
         print(f"{row['setting']:15s}", " ".join(
             f"seed {f['seed']} @ {f['theta']}: r {f['reward']:+.2f} LE {f['le_max']:.2f}"
             for f in row["fetches"]))
-    tmp = args.out.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(data, indent=1) + "\n")
-    os.replace(tmp, args.out)
     return 0
 
 

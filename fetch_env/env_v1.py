@@ -23,8 +23,8 @@ class FoodFetchBlockV1Env(FoodFetchEnv):
         "(mu 0.1 to 0.8).  A small piece is crushed by the angle that holds a large one, so "
         "the clamp angle must follow the piece's size; the time cost rewards the fastest "
         "clamp and lift that still hold.  Known limit: the stiffness and friction the probes "
-        "measure change the best angle little here (an agent that sees only the sizes comes "
-        "within 0.03 of search; docs/agents.md, 'How much choosing the angle is worth').",
+        "measure change the best angle little here (an agent that sees only the sizes scores "
+        "0.031 below search; docs/agents.md, 'How much choosing the angle is worth').",
         "block", "v1")
 
     __init__ = _with_defaults("block", "v1")

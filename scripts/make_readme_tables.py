@@ -158,10 +158,9 @@ def soak_table(data: dict[str, Any]) -> str:
         machine = _machine(run.get("machine", data["machine"]["machine"]))
         machines.setdefault(machine, []).append(
             env_id.removeprefix("FoodFetch-"))
-    most = max(machines, key=lambda m: len(machines[m]))
-    where = "; ".join(f"{', '.join(ids)} on {m}" for m, ids in machines.items() if m != most)
-    where += ("; the others" if len(machines) > 1 else "") + f" on {most}"
-    where = where.removeprefix("; ").removeprefix(" on ")
+    most = max(machines, key=lambda m: len(machines[m]))  # named last, as "the others"
+    where = "".join(f"{', '.join(ids)} on {m}; " for m, ids in machines.items() if m != most)
+    where += f"the others on {most}" if len(machines) > 1 else most
     runs = "" if per_id else f"{counts.pop()} episodes an id, one process; "
     return ("\n".join(rows) + f"\n\n{runs}medians of the second and last tenths (limits: "
             "20 MiB, +10 %); the rerun repeats the early episodes last; "
