@@ -1,11 +1,13 @@
 """The environments' model estimates against their oracle, and what the probes cost a reset.
 
 For each layout, resets the env on held-back seeds (Block: ``tests/test_env_slow.HELD_BACK``,
-90000-90063; the other layouts: 90000-90031) with the probes calibrated and uncalibrated
-(``probe_calibrated``), and reports, per parameter, the median, 95th percentile and max of
+90000-90063; the other layouts: 90000-90031) with the default ``env`` probes calibrated and
+uncalibrated (``probe_calibrated``) and with the ``measure`` probes calibrated
+(``probes="measure"``), and reports, per parameter, the median, 95th percentile and max of
 |model / oracle - 1| (g1, tau1 and mu: the material's, exact; K1, K2, B: the oracle's
-nominal ``2 E A / l``, so only their scatter means much), and the probes' median wall time
-per reset.  Writes JSON and a markdown table.
+nominal ``2 E A / l``, so only their scatter means much), the probes' median wall time per
+reset and the reset's median CPU time (this process's, so the machine's load does not
+enter).  Writes JSON and a markdown table.
 
     python benchmarks/bench_env_estimates.py --workers 2 --out docs/data/validation
 """
@@ -17,6 +19,7 @@ import json
 import os
 import platform
 import sys
+import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -32,19 +35,28 @@ LAYOUTS = {"block": 64, "row": 32, "two_rows": 32, "diced": 32}
 FIRST_SEED = 90_000
 
 
-def run(layout: str, calibrated: bool, seeds: list[int]) -> dict[str, Any]:
-    """Reset on every seed; the errors per parameter and the probes' wall times."""
-    env = FoodFetchEnv(layout=layout, estimator="model", probe_calibrated=calibrated)
+# (probes preset, calibrated) per layout
+VARIANTS: tuple[tuple[str, bool], ...] = (("env", True), ("env", False), ("measure", True))
+
+
+def run(layout: str, probes: str, calibrated: bool, seeds: list[int]) -> dict[str, Any]:
+    """Reset on every seed; the errors per parameter, the probes' wall times and the
+    resets' CPU times."""
+    env = FoodFetchEnv(layout=layout, estimator="model", probes=probes,
+                       probe_calibrated=calibrated)
     errs: dict[str, list[float]] = {k: [] for k in PARAM_NAMES}
-    walls = []
+    walls, cpus = [], []
     for seed in seeds:
+        cpu = time.process_time()
         _, info = env.reset(seed=seed)
+        cpus.append(time.process_time() - cpu)
         walls.append(env.last_probe_wall_time)
         for k in PARAM_NAMES:
             est = info["estimated_params"][k]
             errs[k].append(float("nan") if est is None else est / info["true_params"][k] - 1)
-    return {"layout": layout, "calibrated": calibrated, "seeds": [seeds[0], seeds[-1]],
-            "errors": errs, "wall_median": float(np.median(walls))}
+    return {"layout": layout, "probes": probes, "calibrated": calibrated,
+            "seeds": [seeds[0], seeds[-1]], "errors": errs,
+            "wall_median": float(np.median(walls)), "reset_cpu_median": float(np.median(cpus))}
 
 
 def summary(errs: list[float]) -> dict[str, float]:
@@ -57,17 +69,23 @@ def summary(errs: list[float]) -> dict[str, float]:
 
 
 def table(results: list[dict[str, Any]]) -> str:
-    lines = ["| layout | calibrated | scenes | " + " | ".join(
-        f"{k} median / 95th" for k in ("g1", "tau1", "mu")) + " | probes a reset |",
-        "|---|---|---|---|---|---|---|"]
+    lines = ["| layout | probes | calibrated | scenes | " + " | ".join(
+        f"{k} median / 95th" for k in ("g1", "tau1", "mu"))
+        + " | reset CPU | against env probes |", "|---|---|---|---|---|---|---|---|---|"]
+    base = {r["layout"]: r.get("reset_cpu_median") for r in results
+            if r.get("probes", "env") == "env" and r["calibrated"]}
     for r in results:
         cells = []
         for k in ("g1", "tau1", "mu"):
             s = summary(r["errors"][k])
             cells.append(f"{100 * s['median']:.1f} / {100 * s['p95']:.1f} %")
         n = len(r["errors"]["g1"])
-        lines.append(f"| {r['layout']} | {'yes' if r['calibrated'] else 'no'} | {n} | "
-                     + " | ".join(cells) + f" | {1e3 * r['wall_median']:.0f} ms |")
+        cpu, ref = r.get("reset_cpu_median"), base.get(r["layout"])
+        cost = "" if cpu is None else f"{1e3 * cpu:.0f} ms"
+        ratio = "" if cpu is None or not ref else f"{cpu / ref:.2f}x"
+        lines.append(f"| {r['layout']} | {r.get('probes', 'env')} | "
+                     f"{'yes' if r['calibrated'] else 'no'} | {n} | " + " | ".join(cells)
+                     + f" | {cost} | {ratio} |")
     return "\n".join(lines) + "\n"
 
 
@@ -79,8 +97,8 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.workers < 1:
         p.error("--workers must be >= 1")
-    jobs = [(lay, cal, list(range(FIRST_SEED, FIRST_SEED + LAYOUTS[lay])))
-            for lay in args.layouts for cal in (True, False)]
+    jobs = [(lay, probes, cal, list(range(FIRST_SEED, FIRST_SEED + LAYOUTS[lay])))
+            for lay in args.layouts for probes, cal in VARIANTS]
     with ProcessPoolExecutor(args.workers) as pool:
         results = list(pool.map(run, *zip(*jobs, strict=True)))
     meta = {"machine": platform.machine(), "cpus": os.cpu_count(),
@@ -94,7 +112,9 @@ def main(argv: list[str] | None = None) -> int:
     tmp.write_text(text)
     os.replace(tmp, args.out / "env_estimates.json")
     md = table(results)
-    (args.out / "env_estimates.md").write_text(md)
+    tmp = args.out / "env_estimates.md.tmp"
+    tmp.write_text(md)
+    os.replace(tmp, args.out / "env_estimates.md")
     print(md)
     return 0
 
