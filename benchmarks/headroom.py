@@ -13,10 +13,11 @@ same seeded scenes (``reset(seed=S + i)``, i < N), and the orderings a benchmark
 
 Reporting seeds start at 80000 (nothing in the project was tuned on them; the -v1 rewards and
 the agents' time-cost rules were designed on Block-v1, Row-v1 and Diced-v1 seeds 100-139).
-Results are written after each id (atomically), so a stopped run keeps the ids it finished::
+Results are written after each id (atomically), so a stopped run keeps the ids it finished;
+with ``--logs DIR`` it also keeps each id's finished episodes and continues them when rerun::
 
     python benchmarks/headroom.py --ids FoodFetch-Block-v1 --episodes 200 --seed 80000 \\
-        --workers 2 --out docs/data/headroom.json
+        --workers 2 --out docs/data/headroom.json --logs headroom_logs
 """
 
 from __future__ import annotations
@@ -42,15 +43,26 @@ from benchmarks.readme_meta import meta, write_json
 AGENTS = ("random", "study", "model-based", "search")
 
 
-def run_evaluate(env_id: str, episodes: int, seed: int, workers: int) -> tuple[dict, str]:
-    """One ``food-fetch evaluate`` run with every episode's record, and its command."""
+def run_evaluate(env_id: str, episodes: int, seed: int, workers: int,
+                 logs: Path | None = None) -> tuple[dict, str]:
+    """One ``food-fetch evaluate`` run with every episode's record, and its command.
+
+    With ``logs``, the run's episode log is ``logs/ENV_ID.episodes.jsonl``: each finished
+    episode is kept there as it finishes, and a log left by a stopped run is continued
+    (``--resume``) instead of started over.
+    """
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "eval.json"
         cmd = ["food-fetch", "evaluate", "--env", env_id, "--episodes", str(episodes),
                "--seed", str(seed), "--workers", str(workers), "--quiet", "--json-episodes",
                "--json", str(out)]
         cmd += [a for agent in AGENTS for a in ("--agent", agent)]
-        subprocess.run(cmd, check=True)
+        extra: list[str] = []
+        if logs is not None:
+            logs.mkdir(parents=True, exist_ok=True)
+            log = logs / f"{env_id}.episodes.jsonl"
+            extra = ["--resume", str(log)] if log.exists() else ["--episodes-log", str(log)]
+        subprocess.run(cmd + extra, check=True)
         data = json.loads(out.read_text())
     shown = " ".join(c if c != str(out) else "FILE" for c in cmd)
     return data, shown
@@ -94,9 +106,10 @@ def orderings(agents: dict[str, Any], margin: float) -> dict[str, bool]:
     }
 
 
-def headroom(env_id: str, episodes: int, seed: int, workers: int, margin: float) -> dict:
+def headroom(env_id: str, episodes: int, seed: int, workers: int, margin: float,
+             logs: Path | None = None) -> dict:
     """One id's agents, orderings and model-based's paired regret against search."""
-    data, command = run_evaluate(env_id, episodes, seed, workers)
+    data, command = run_evaluate(env_id, episodes, seed, workers, logs)
     keep = ("episodes", "reward_mean", "reward_ci95", "fetch_rate_mean", "success_rate",
             "max_log_strain_mean")
     agents = {a: {k: data["agents"][a][k] for k in keep} for a in AGENTS}
@@ -142,13 +155,17 @@ def main() -> int:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--margin", type=float, default=0.1)
     p.add_argument("--out", type=Path, default=Path("docs/data/headroom.json"))
+    p.add_argument("--logs", type=Path, default=None, metavar="DIR",
+                   help="keep each id's episode log in DIR and continue it if a stopped "
+                   "run left one (default: none kept)")
     args = p.parse_args()
     old = json.loads(args.out.read_text()) if args.out.exists() else {}
     results = dict(old.get("results", {}))
     for env_id in args.ids:
         start = time.perf_counter()
         before = results.get(env_id, {})
-        results[env_id] = headroom(env_id, args.episodes, args.seed, args.workers, args.margin)
+        results[env_id] = headroom(env_id, args.episodes, args.seed, args.workers, args.margin,
+                                   args.logs)
         results[env_id]["meta"] = {**meta(), "wall_s": round(time.perf_counter() - start, 1)}
         _keep_added_agents(before, results[env_id])
         write_json(args.out, {"margin": args.margin, "results": results})
