@@ -69,8 +69,10 @@ def physics_table(data: dict[str, Any]) -> str:
     return "\n".join(rows) + "\n" + _footer(data["meta"])
 
 
-def _mean_ci(mean: float, ci: list[float] | None) -> str:
-    return f"{mean:.3f}" if ci is None else f"{mean:.3f} [{ci[0]:.3f}, {ci[1]:.3f}]"
+def _mean_ci(mean: float, ci: list[float] | None, digits: int = 3) -> str:
+    if ci is None:
+        return f"{mean:.{digits}f}"
+    return f"{mean:.{digits}f} [{ci[0]:.{digits}f}, {ci[1]:.{digits}f}]"
 
 
 def headroom_table(data: dict[str, Any]) -> str:
@@ -80,44 +82,38 @@ def headroom_table(data: dict[str, Any]) -> str:
             + " | regret of model-based | orderings |",
             "|---" * (len(shown) + 3) + "|"]
     for env_id, r in results.items():
-        cells = [_mean_ci(r["agents"][a]["reward_mean"], r["agents"][a]["reward_ci95"])
-                 if a in r["agents"] else "not trained" if a in TRAINED else "-"
-                 for a in shown]
+        cells = [_mean_ci(r["agents"][a]["reward_mean"], r["agents"][a]["reward_ci95"], 2)
+                 if a in r["agents"] else "-" for a in shown]
         regret = r["regret_model_based"]
-        rows.append(f"| {env_id} | " + " | ".join(cells) + f" | "
-                    f"{_mean_ci(regret['mean'], regret['ci95'])} | "
+        rows.append(f"| {env_id.removeprefix('FoodFetch-')} | " + " | ".join(cells) + f" | "
+                    f"{_mean_ci(regret['mean'], regret['ci95'], 2)} | "
                     f"{'hold' if r['all_hold'] else 'fail'} |")
     first = next(iter(results.values()))
     n = first["agents"]["search"]["episodes"]
     seed = re.search(r"--seed (\d+)", first["command"])
-    meta = first["meta"]
-    runs = ", ".join(f"{env_id} at {r['meta']['commit']} ({r['meta']['wall_s']:.0f} s)"
+    cpus = {env_id: _machine(r["meta"]["machine"]) for env_id, r in results.items()}
+    arch, _, _ = next(iter(cpus.values())).partition(", ")
+    runs = ", ".join(f"{env_id.removeprefix('FoodFetch-')} at {r['meta']['commit']} "
+                     f"({r['meta']['wall_s'] / 60:.0f} min, {cpus[env_id].partition(', ')[2]})"
                      for env_id, r in results.items())
     return ("\n".join(rows) + f"\n\nMean reward [95 %], {n} scenes per id from seed "
             f"{seed.group(1) if seed else '?'} (never tuned on); regret: search less "
             f"model-based, paired; orderings: search beats study by >= {data['margin']:g}, "
-            "model-based beats random and study, intervals apart. "
-            f"{_machine(meta['machine'])}; {runs}: `python benchmarks/headroom.py --ids ID "
-            "--episodes 200 --seed 80000 --workers 2`" + _trained_note(results))
+            "model-based beats random and study, intervals apart" + _shortfalls(results)
+            + f". {arch}; {runs}: `python benchmarks/headroom.py --ids ID "
+            "--episodes 200 --seed 80000 --workers 2`. The learned agents' budgets and the "
+            "size-only ablation: [docs/agents.md](docs/agents.md#headroom-on-the-benchmark-ids).")
 
 
-def _paired_note(trained: dict[str, Any]) -> str:
-    d = trained.get("minus_model_based")
-    return "" if d is None else f" ({_mean_ci(d['mean'], d['ci95'])} over model-based, paired)"
+def _shortfalls(results: dict[str, Any]) -> str:
+    """The orderings that failed, per id, in words ("" where every one holds)."""
+    def words(check: str) -> str:
+        return check.replace("_", " ").replace("model based", "model-based")
 
-
-def _trained_note(results: dict[str, Any]) -> str:
-    """How the learned agents in the table were trained (budget, wall time, script), and the
-    size-only ablation against model-based."""
-    runs = [f"{a.upper()} on {env_id}: {t['timesteps']} fetches, "
-            f"{t['train_wall_s'] / 60:.0f} min" + _paired_note(t)
-            for env_id, r in results.items() for a, t in r.get("trained", {}).items()]
-    ablations = [f"{env_id}" + _paired_note(a) for env_id, r in results.items()
-                 if (a := r.get("ablations", {}).get("size-only"))]
-    text = "" if not runs else ". Learned (`scripts/train_agent.sh ID ALGO`): " + "; ".join(runs)
-    if ablations:
-        text += ". Size-only (sizes alone): " + "; ".join(ablations)
-    return text + "." if text else ""
+    failed = [f"{env_id.removeprefix('FoodFetch-')}: "
+              + ", ".join(words(k) for k, ok in r["checks"].items() if not ok)
+              for env_id, r in results.items() if not r["all_hold"]]
+    return "" if not failed else " (not met: " + "; ".join(failed) + ")"
 
 
 def speed_table(data: dict[str, Any]) -> str:
@@ -141,30 +137,28 @@ def speed_table(data: dict[str, Any]) -> str:
 
 
 def soak_table(data: dict[str, Any]) -> str:
-    counts = {run["summary"]["episodes"] for run in data["ids"].values()}
-    per_id = len(counts) > 1  # an episodes column only where the runs differ in length
-    rows = ["| id |" + (" episodes |" if per_id else "")
-            + " RSS, late - early | CPU/episode, late / early | early rerun |",
-            "|---" * (5 if per_id else 4) + "|"]
+    """The worst id of each soak measure against its limit; every id's figures are in
+    docs/benchmarks.md."""
+    growth: dict[str, tuple[float, float, float]] = {}
     for env_id, run in data["ids"].items():
         s, again = run["summary"], run["replay"]
-        cpu = s["episode_cpu_s_median_late"] / s["episode_cpu_s_median_early"] - 1
-        rows.append(f"| {env_id.removeprefix('FoodFetch-')} | "
-                    + (f"{s['episodes']} | " if per_id else "")
-                    + f"{s['rss_median_late_mib'] - s['rss_median_early_mib']:+.1f} MiB | "
-                    f"{100 * cpu:+.1f} % | {again['median_paired_change_pct']:+.1f} % |")
-    machines: dict[str, list[str]] = {}
-    for env_id, run in data["ids"].items():  # ids soaked on another machine name it
-        machine = _machine(run.get("machine", data["machine"]["machine"]))
-        machines.setdefault(machine, []).append(
-            env_id.removeprefix("FoodFetch-"))
-    most = max(machines, key=lambda m: len(machines[m]))  # named last, as "the others"
-    where = "".join(f"{', '.join(ids)} on {m}; " for m, ids in machines.items() if m != most)
-    where += f"the others on {most}" if len(machines) > 1 else most
-    runs = "" if per_id else f"{counts.pop()} episodes an id, one process; "
-    return ("\n".join(rows) + f"\n\n{runs}medians of the second and last tenths (limits: "
-            "20 MiB, +10 %); the rerun repeats the early episodes last; "
-            f"{where}: `python benchmarks/soak.py --env ID`")
+        growth[env_id.removeprefix("FoodFetch-")] = (
+            s["rss_median_late_mib"] - s["rss_median_early_mib"],
+            100 * (s["episode_cpu_s_median_late"] / s["episode_cpu_s_median_early"] - 1),
+            again["median_paired_change_pct"])
+    rows = ["| measure, late against early | worst id | its value | limit |", "|---|---|---|---|"]
+    for i, (what, unit, limit) in enumerate((
+            ("resident memory", "MiB", "+20 MiB"), ("CPU per episode", "%", "+10 %"),
+            ("the early episodes run again", "%", ""))):
+        worst = max(growth, key=lambda k, i=i: growth[k][i])
+        rows.append(f"| {what} | {worst} | {growth[worst][i]:+.1f} {unit} | {limit or '-'} |")
+    counts = sorted({run["summary"]["episodes"] for run in data["ids"].values()})
+    machines = sorted({_machine(run.get("machine", data["machine"]["machine"]))
+                       for run in data["ids"].values()})
+    return ("\n".join(rows) + f"\n\n{len(growth)} ids, {'-'.join(map(str, counts))} episodes "
+            "each in one process; medians of the second and last tenths; the early episodes "
+            f"run again last; {' and '.join(machines)}: `python benchmarks/soak.py --env ID` "
+            "([every id](docs/benchmarks.md#long-runs-soakpy))")
 
 
 TABLES: dict[str, Callable[[dict[str, Any]], str]] = {
