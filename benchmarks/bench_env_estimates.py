@@ -28,6 +28,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from agents.atomic import write_atomic
 from fetch_env.env import FoodFetchEnv
 from fetch_env.probes import PARAM_NAMES
 
@@ -72,20 +73,19 @@ def table(results: list[dict[str, Any]]) -> str:
     lines = ["| layout | probes | calibrated | scenes | " + " | ".join(
         f"{k} median / 95th" for k in ("g1", "tau1", "mu"))
         + " | reset CPU | against env probes |", "|---|---|---|---|---|---|---|---|---|"]
-    base = {r["layout"]: r.get("reset_cpu_median") for r in results
-            if r.get("probes", "env") == "env" and r["calibrated"]}
+    base = {r["layout"]: r["reset_cpu_median"] for r in results
+            if r["probes"] == "env" and r["calibrated"]}
     for r in results:
         cells = []
         for k in ("g1", "tau1", "mu"):
             s = summary(r["errors"][k])
             cells.append(f"{100 * s['median']:.1f} / {100 * s['p95']:.1f} %")
         n = len(r["errors"]["g1"])
-        cpu, ref = r.get("reset_cpu_median"), base.get(r["layout"])
-        cost = "" if cpu is None else f"{1e3 * cpu:.0f} ms"
-        ratio = "" if cpu is None or not ref else f"{cpu / ref:.2f}x"
-        lines.append(f"| {r['layout']} | {r.get('probes', 'env')} | "
+        cpu, ref = r["reset_cpu_median"], base.get(r["layout"])
+        ratio = f"{cpu / ref:.2f}x" if ref else ""
+        lines.append(f"| {r['layout']} | {r['probes']} | "
                      f"{'yes' if r['calibrated'] else 'no'} | {n} | " + " | ".join(cells)
-                     + f" | {cost} | {ratio} |")
+                     + f" | {1e3 * cpu:.0f} ms | {ratio} |")
     return "\n".join(lines) + "\n"
 
 
@@ -108,13 +108,9 @@ def main(argv: list[str] | None = None) -> int:
         r["summary"] = {k: summary(r["errors"][k]) for k in PARAM_NAMES}
     args.out.mkdir(parents=True, exist_ok=True)
     text = json.dumps({"meta": meta, "results": results}, indent=1)
-    tmp = args.out / "env_estimates.json.tmp"
-    tmp.write_text(text)
-    os.replace(tmp, args.out / "env_estimates.json")
+    write_atomic(args.out / "env_estimates.json", text)
     md = table(results)
-    tmp = args.out / "env_estimates.md.tmp"
-    tmp.write_text(md)
-    os.replace(tmp, args.out / "env_estimates.md")
+    write_atomic(args.out / "env_estimates.md", md)
     print(md)
     return 0
 

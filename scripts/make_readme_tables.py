@@ -47,12 +47,18 @@ def _pct(x: float, digits: int = 2) -> str:
     return f"{100 * x:.{digits}f} %"
 
 
-def _machine(text: str) -> str:
-    """"x86_64, 2 cores (Intel(R) Xeon(R) Processor)" -> "2 x86_64 cores, Intel Xeon"."""
+def _machine_parts(text: str) -> tuple[str, str]:
+    """"x86_64, 2 cores (Intel(R) Xeon(R) Processor)" -> ("2 x86_64 cores", "Intel Xeon")."""
     arch, _, rest = text.partition(", ")
     cores, _, cpu = rest.partition(" (")
     cpu = cpu[:-1].replace("(R)", "").replace(" Processor", "").strip()
-    return f"{cores.replace(' cores', '')} {arch} cores" + (f", {cpu}" if cpu else "")
+    return f"{cores.replace(' cores', '')} {arch} cores", cpu
+
+
+def _machine(text: str) -> str:
+    """"x86_64, 2 cores (Intel(R) Xeon(R) Processor)" -> "2 x86_64 cores, Intel Xeon"."""
+    cores, cpu = _machine_parts(text)
+    return cores + (f", {cpu}" if cpu else "")
 
 
 def _footer(meta: dict[str, Any]) -> str:
@@ -91,16 +97,16 @@ def headroom_table(data: dict[str, Any]) -> str:
     first = next(iter(results.values()))
     n = first["agents"]["search"]["episodes"]
     seed = re.search(r"--seed (\d+)", first["command"])
-    cpus = {env_id: _machine(r["meta"]["machine"]) for env_id, r in results.items()}
-    arch, _, _ = next(iter(cpus.values())).partition(", ")
+    parts = {env_id: _machine_parts(r["meta"]["machine"]) for env_id, r in results.items()}
+    cores = parts[next(iter(results))][0]
     runs = ", ".join(f"{env_id.removeprefix('FoodFetch-')} at {r['meta']['commit']} "
-                     f"({r['meta']['wall_s'] / 60:.0f} min, {cpus[env_id].partition(', ')[2]})"
+                     f"({r['meta']['wall_s'] / 60:.0f} min, {parts[env_id][1]})"
                      for env_id, r in results.items())
     return ("\n".join(rows) + f"\n\nMean reward [95 %], {n} scenes per id from seed "
             f"{seed.group(1) if seed else '?'} (never tuned on); regret: search less "
             f"model-based, paired; orderings: search beats study by >= {data['margin']:g}, "
             "model-based beats random and study, intervals apart" + _shortfalls(results)
-            + f". {arch}; {runs}: `python benchmarks/headroom.py --ids ID "
+            + f". {cores}; {runs}: `python benchmarks/headroom.py --ids ID "
             "--episodes 200 --seed 80000 --workers 2`. The learned agents' budgets and the "
             "size-only ablation: [docs/agents.md](docs/agents.md#headroom-on-the-benchmark-ids).")
 
