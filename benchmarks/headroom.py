@@ -26,6 +26,7 @@ import argparse
 import json
 import math
 import re
+import signal
 import subprocess
 import sys
 import tempfile
@@ -62,10 +63,37 @@ def run_evaluate(env_id: str, episodes: int, seed: int, workers: int,
             logs.mkdir(parents=True, exist_ok=True)
             log = logs / f"{env_id}.episodes.jsonl"
             extra = ["--resume", str(log)] if log.exists() else ["--episodes-log", str(log)]
-        subprocess.run(cmd + extra, check=True)
+        _run_to_end(cmd + extra)
         data = json.loads(out.read_text())
     shown = " ".join(c if c != str(out) else "FILE" for c in cmd)
     return data, shown
+
+
+class StoppedError(RuntimeError):
+    """The evaluation stopped before its end; ``exit_code``: 130 for a signal, 1 for a
+    failed command."""
+
+    def __init__(self, why: str, exit_code: int) -> None:
+        super().__init__(why)
+        self.exit_code = exit_code
+
+
+def _run_to_end(cmd: list[str]) -> None:
+    """Run ``cmd``; a stop of this process (Ctrl-C, SIGTERM, SIGHUP) is passed on to it, so
+    that it writes what finished, and raised as :class:`StoppedError`, as is its failure."""
+    child = subprocess.Popen(cmd)
+    try:
+        code = child.wait()
+    except KeyboardInterrupt:
+        child.send_signal(signal.SIGTERM)
+        child.wait()
+        raise StoppedError("stopped", 130) from None
+    if code != 0:
+        raise StoppedError(f"food-fetch evaluate exited with code {code}", 1)
+
+
+def _raise_interrupt(signum: int, _frame: Any) -> None:
+    raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
 def paired_difference(a: list[float], b: list[float], level: float = 0.95) -> dict[str, Any]:
@@ -159,13 +187,23 @@ def main() -> int:
                    help="keep each id's episode log in DIR and continue it if a stopped "
                    "run left one (default: none kept)")
     args = p.parse_args()
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, _raise_interrupt)
     old = json.loads(args.out.read_text()) if args.out.exists() else {}
     results = dict(old.get("results", {}))
     for env_id in args.ids:
         start = time.perf_counter()
         before = results.get(env_id, {})
-        results[env_id] = headroom(env_id, args.episodes, args.seed, args.workers, args.margin,
-                                   args.logs)
+        try:
+            results[env_id] = headroom(env_id, args.episodes, args.seed, args.workers,
+                                       args.margin, args.logs)
+        except StoppedError as exc:
+            kept = (f"its finished episodes are in {args.logs / (env_id + '.episodes.jsonl')} "
+                    "(rerun with the same --logs to continue)" if args.logs is not None
+                    else "its episodes are lost (--logs DIR keeps them)")
+            print(f"headroom: {env_id} {exc}; the ids finished before it are in {args.out}; "
+                  f"{kept}", file=sys.stderr)
+            return exc.exit_code
         results[env_id]["meta"] = {**meta(), "wall_s": round(time.perf_counter() - start, 1)}
         _keep_added_agents(before, results[env_id])
         write_json(args.out, {"margin": args.margin, "results": results})
