@@ -19,8 +19,13 @@ contact events' sensitivity alone reorders, with no change to the physics.
 (5 ms, 100) with 5 ms at 1000 against a 2.5 ms reference at 1000.  Each run's speed is also
 summed: total simulated time over total wall time (with ``--workers`` > 1, relative only).
 
+``--hold-scales`` pairs each step with a quasi-static hold scale (the env's
+``fetch_hold_scale``; 1, real time, where omitted), so ``--steps 0.005,0.005 --hold-scales
+1,5 --twins`` judges the fetch's holds stepped quasi-statically against the real-time fetch
+and its chaos floor (docs/validation/quasi-static-holds.md).
+
 Run: python benchmarks/bench_step_size.py [--seeds 20] [--workers 2] [--twins] [--json FILE]
-       [--steps 0.0025,0.005,0.01] [--impratios 1000,1000,100]
+       [--steps 0.0025,0.005,0.01] [--impratios 1000,1000,100] [--hold-scales 1,1,5]
 """
 
 from __future__ import annotations
@@ -36,7 +41,8 @@ from concurrent.futures import ProcessPoolExecutor
 import mujoco
 import numpy as np
 
-from fetch_env.controller import FetchAction, FetchSimulator
+from fetch_env.controller import FetchAction, FetchSimulator, TimeScale, make_profile
+from fetch_env.env import FETCH_HOLD_REALTIME
 from fetch_env.layouts import diced_mix
 
 CRUSHED_LOG_STRAIN = 1.0  # above it a piece's one-cell flex has inverted (README, "Crushed")
@@ -44,28 +50,33 @@ TWIN_SHIFT = 1e-9  # [m] how far a twin's pieces are moved: physically nothing
 
 
 def run_mix(seed: int, steps: tuple[float, ...], theta_d: float, twins: bool = False,
-            impratios: tuple[float | None, ...] | None = None) -> list[dict]:
+            impratios: tuple[float | None, ...] | None = None,
+            hold_scales: tuple[float, ...] | None = None) -> list[dict]:
     """One seeded diced mix (6-12 pieces), fetched once at each step with its impratio
-    (None: the scene's default), then, with ``twins``, once more at each with every piece
-    moved by ``TWIN_SHIFT``."""
+    (None: the scene's default) and hold scale (1: real time), then, with ``twins``, once
+    more at each with every piece moved by ``TWIN_SHIFT``."""
     rng = np.random.default_rng(seed)
     pieces = diced_mix(rng)
     signs = rng.choice([-1.0, 1.0], size=len(pieces))
     moved = tuple(dataclasses.replace(p, x=p.x + s * TWIN_SHIFT)
                   for p, s in zip(pieces, signs, strict=True))
-    configs = list(zip(steps, impratios or (None,) * len(steps), strict=True))
+    configs = list(zip(steps, impratios or (None,) * len(steps),
+                       hold_scales or (1.0,) * len(steps), strict=True))
     out = []
-    for (dt, imp), layout in ([(c, pieces) for c in configs]
-                              + [(c, moved) for c in configs if twins]):
-        r = FetchSimulator(layout, timestep=dt, impratio=imp).run(
-            "fetch", FetchAction(theta_d=theta_d))
+    for (dt, imp, k), layout in ([(c, pieces) for c in configs]
+                                 + [(c, moved) for c in configs if twins]):
+        scale = None if k == 1 else TimeScale(k, realtime=FETCH_HOLD_REALTIME)
+        action = FetchAction(theta_d=theta_d)
+        r = FetchSimulator(layout, timestep=dt, impratio=imp).run("fetch", action,
+                                                                  time_scale=scale)
+        physical = float(make_profile("fetch", action, dt, scale).step_time.sum())
         out.append({"fetched": [bool(p["fetched"]) for p in r.pieces],
                     "log_strain": max(max(p["max_log_strain_clamp"], p["max_log_strain_lift"])
                                       for p in r.pieces),
                     "fetch_rate": r.fetch_rate,
                     "warned": bool(r.extra["mujoco_warnings"]),
-                    "realtime": r.n_steps * r.timestep / r.wall_time,
-                    "simulated": r.n_steps * r.timestep, "wall": r.wall_time})
+                    "realtime": physical / r.wall_time,
+                    "simulated": physical, "wall": r.wall_time})
     return out
 
 
@@ -80,6 +91,9 @@ def main() -> None:
     p.add_argument("--impratios", type=lambda s: tuple(float(x) for x in s.split(",")),
                    default=None, help="friction impratio of each step's runs, as many as "
                    "--steps (default: the scene's, 1000 for one piece and 100 for several)")
+    p.add_argument("--hold-scales", type=lambda s: tuple(float(x) for x in s.split(",")),
+                   default=None, help="quasi-static hold scale of each step's runs, as many "
+                   "as --steps, each in [1, 20] (default: 1, real time)")
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--twins", action="store_true",
                    help="also run each step with the pieces moved 1 nm (the chaos floor)")
@@ -92,6 +106,11 @@ def main() -> None:
     bad = [x for x in args.impratios or () if not 1 <= x <= 1e4]  # (NaN fails too)
     if bad:
         p.error(f"--impratios: {bad[0]} is not in [1, 1e4]")
+    if args.hold_scales is not None and len(args.hold_scales) != len(args.steps):
+        p.error(f"--hold-scales names {len(args.hold_scales)} values for {len(args.steps)} steps")
+    bad = [x for x in args.hold_scales or () if not 1 <= x <= 20]
+    if bad:
+        p.error(f"--hold-scales: {bad[0]} is not in [1, 20]")
     if args.json and not os.path.isdir(os.path.dirname(os.path.abspath(args.json))):
         p.error(f"--json {args.json}: no such directory")
     seeds = range(args.first_seed, args.first_seed + args.seeds)
@@ -102,7 +121,7 @@ def main() -> None:
     with ProcessPoolExecutor(args.workers) as pool:
         runs = list(pool.map(run_mix, seeds, [args.steps] * len(seeds),
                              [args.theta_d] * len(seeds), [args.twins] * len(seeds),
-                             [args.impratios] * len(seeds)))
+                             [args.impratios] * len(seeds), [args.hold_scales] * len(seeds)))
     n_pieces = sum(len(r[0]["fetched"]) for r in runs)
 
     def rate_shift(k: int, ref: int) -> str:
@@ -119,7 +138,9 @@ def main() -> None:
 
     n = len(args.steps)
     labels = [f"{dt * 1000:5.2f} ms" + ("" if imp is None else f" at impratio {imp:g}")
-              for dt, imp in zip(args.steps, args.impratios or (None,) * n, strict=True)]
+              + ("" if k == 1 else f", holds x{k:g}")
+              for dt, imp, k in zip(args.steps, args.impratios or (None,) * n,
+                                    args.hold_scales or (1.0,) * n, strict=True)]
     twin_label = f"pieces moved {TWIN_SHIFT * 1e9:g} nm"
     labels += [f"{label}, {twin_label}" for label in labels] if args.twins else []
     for k, label in enumerate(labels):

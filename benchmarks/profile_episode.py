@@ -39,8 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import fetch_env  # noqa: F401  (registers the ids)
 import fetch_env.controller as controller
 import fetch_env.env as env_module
-from agents.atomic import write_atomic
-from benchmarks.readme_meta import meta, write_json
+from benchmarks.readme_meta import meta, rewrite_block, write_json
 from fetch_env.controller import PHASES
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -186,12 +185,7 @@ def table(data: dict[str, Any]) -> str:
 
 def write_docs(data: dict[str, Any], path: Path = DOCS) -> None:
     """Replace the marked block of ``path`` with :func:`table` of ``data``."""
-    text = path.read_text()
-    head, _, rest = text.partition(BEGIN)
-    _, _, tail = rest.partition(END)
-    if not rest:
-        raise SystemExit(f"{path}: no {BEGIN} block")
-    write_atomic(path, f"{head}{BEGIN}\n{table(data)}\n{END}{tail}")
+    rewrite_block(path, BEGIN, END, table(data))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -63,3 +63,16 @@ def write_json(path: Path, data: dict[str, Any]) -> None:
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(json.dumps(data, indent=1) + "\n")
     tmp.replace(path)
+
+
+def rewrite_block(path: Path, begin: str, end: str, body: str) -> None:
+    """Replace what lies between the marker lines ``begin`` and ``end`` in ``path`` with
+    ``body`` (atomically); refused, naming the file, where ``begin`` is missing."""
+    text = path.read_text()
+    head, found, rest = text.partition(begin)
+    if not found:
+        raise SystemExit(f"{path}: no {begin} block")
+    _, _, tail = rest.partition(end)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(f"{head}{begin}\n{body}\n{end}{tail}")
+    tmp.replace(path)

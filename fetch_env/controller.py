@@ -180,16 +180,18 @@ class Profile:
     lift_dot: np.ndarray  # [m/s]
     phase: np.ndarray  # int codes into PHASES
     step_time: np.ndarray  # [s] physical time each step stands for (dt but in a scaled hold)
+    scaled: np.ndarray  # bool: the steps of the time-scaled holds
     t_clamp_start: float
-    i_scaled: int | None = None  # the step the time-scaled hold starts at (None: no scaling)
+    i_scaled: int | None = None  # the step the first time-scaled hold starts at (None: none)
 
 
 def make_profile(experiment: str, action: FetchAction, dt: float,
                  time_scale: TimeScale | None = None) -> Profile:
     """Piecewise-linear theta(t) and lift(t) of an experiment, at the physics step.
 
-    With ``time_scale`` (relaxation only) the hold past ``time_scale.realtime`` is simulated
-    time-scaled (:class:`TimeScale`): one step per entry of ``TimeScale.step_times``.
+    With ``time_scale`` a hold (the relaxation's; the fetch's hold on the plate and in the
+    air) past its first ``time_scale.realtime`` is simulated time-scaled (:class:`TimeScale`):
+    one step per entry of ``TimeScale.step_times``.
     """
     require(isinstance(action, FetchAction), "action", action, "a FetchAction")
     require_finite("dt", dt)
@@ -200,25 +202,15 @@ def make_profile(experiment: str, action: FetchAction, dt: float,
     t_clamp = action.theta_d / action.omega
     segments.append(("settle", action.settle, 0.0, 0.0))
     segments.append(("clamp", t_clamp, action.theta_d, 0.0))
-    i_scaled: int | None = None
-    scaled_steps = np.zeros(0)
+    scale = time_scale if time_scale is not None and time_scale.scaled else None
+    scaled: list[tuple[int, np.ndarray]] = []  # (first step, physical time of each step)
     if experiment == "fetch":
-        segments.append(("hold", action.hold, 0.0, 0.0))
+        _add_hold(segments, scaled, "hold", action.hold, dt, scale)
         segments.append(("lift", action.lift_height / action.lift_speed, 0.0,
                          action.lift_height))
-        segments.append(("air", action.air_hold, 0.0, 0.0))
+        _add_hold(segments, scaled, "air", action.air_hold, dt, scale)
     elif experiment == "relaxation":
-        if time_scale is not None and time_scale.scaled:
-            # The real-time part ends on the step grid (it is at least ``realtime`` long);
-            # the scaled steps are laid out from there.
-            i_scaled = math.ceil((action.settle + t_clamp + min(time_scale.realtime, action.hold))
-                                 / dt - 1e-9)
-            realtime = i_scaled * dt - action.settle - t_clamp
-            segments.append(("hold", realtime, 0.0, 0.0))
-            scaled_steps = time_scale.step_times(realtime, max(action.hold - realtime, 0.0), dt)
-            segments.append(("hold", scaled_steps.size * dt, 0.0, 0.0))
-        else:
-            segments.append(("hold", action.hold, 0.0, 0.0))
+        _add_hold(segments, scaled, "hold", action.hold, dt, scale)
     elif experiment == "slip":
         segments.append(("hold", action.hold, 0.0, 0.0))
         segments.append(("slide", action.slide_time, 0.0, -action.slide_distance))
@@ -244,10 +236,31 @@ def make_profile(experiment: str, action: FetchAction, dt: float,
         phase[sel] = PHASE_CODE[name]
         th0, z0, start = th0 + dth, z0 + dz, end
     step_time = np.full(n, dt)
-    if i_scaled is not None:
-        step_time[i_scaled:i_scaled + scaled_steps.size] = scaled_steps
-    return Profile(theta, theta_dot, lift, lift_dot, phase, step_time,
-                   t_clamp_start=action.settle, i_scaled=i_scaled)
+    in_scaled = np.zeros(n, dtype=bool)
+    for first, steps in scaled:
+        step_time[first:first + steps.size] = steps
+        in_scaled[first:first + steps.size] = True
+    return Profile(theta, theta_dot, lift, lift_dot, phase, step_time, in_scaled,
+                   t_clamp_start=action.settle, i_scaled=scaled[0][0] if scaled else None)
+
+
+def _add_hold(segments: list[tuple[str, float, float, float]],
+              scaled: list[tuple[int, np.ndarray]], phase: str, length: float, dt: float,
+              time_scale: TimeScale | None) -> None:
+    """Append a hold of ``length`` physical seconds to ``segments``: with ``time_scale``,
+    its first ``time_scale.realtime`` s in real time (ending on the step grid, so at least
+    that long) and the rest time-scaled, whose first step and step times go to ``scaled``."""
+    if time_scale is None:
+        segments.append((phase, length, 0.0, 0.0))
+        return
+    start = sum(seg[1] for seg in segments)
+    first = math.ceil((start + min(time_scale.realtime, length)) / dt - 1e-9)
+    realtime = first * dt - start
+    segments.append((phase, realtime, 0.0, 0.0))
+    steps = time_scale.step_times(realtime, max(length - realtime, 0.0), dt)
+    segments.append((phase, steps.size * dt, 0.0, 0.0))
+    if steps.size:
+        scaled.append((first, steps))
 
 
 @dataclass
@@ -367,8 +380,8 @@ class FetchSimulator:
 
         ``observer(data)``, if given, is called at every recorded sample (``record_hz``) with
         the live ``MjData`` (e.g. to render frames); it must not modify it.
-        ``time_scale`` (relaxation only): run the hold quasi-statically time-scaled
-        (:class:`TimeScale`); the trace is then sampled at every step of the scaled hold.
+        ``time_scale`` (relaxation and fetch): run the holds quasi-statically time-scaled
+        (:class:`TimeScale`); the trace is then sampled at every step of a scaled hold.
         """
         require(isinstance(experiment, str) and experiment in EXPERIMENTS, "experiment",
                 experiment, f"one of {EXPERIMENTS}")
@@ -377,8 +390,8 @@ class FetchSimulator:
         action = action if action is not None else FetchAction()
         if time_scale is not None:
             require(isinstance(time_scale, TimeScale), "time_scale", time_scale, "a TimeScale")
-            require(experiment == "relaxation" or not time_scale.scaled, "time_scale",
-                    time_scale, "only for the relaxation experiment")
+            require(experiment != "slip" or not time_scale.scaled, "time_scale",
+                    time_scale, "not for the slip experiment")
         scene = self.scene_for(experiment)
         return _run(scene, experiment, action, self.record_hz, observer, time_scale)
 
@@ -484,9 +497,10 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
 class _Schedule:
     """Which physics steps a run records, and where the time scale of its hold changes.
 
-    The time-scaled hold (if any) starts at step ``i_scaled`` and its sensors are recorded at
-    every step (each stands for several); the strain, blade overlap and lowest vertex, which
-    hardly move in a hold, keep the regular cadence (``metered``) and are held between.
+    The first time-scaled hold (if any) starts at step ``i_scaled``; the scaled holds'
+    sensors are recorded at every step (each stands for several); the strain, blade overlap
+    and lowest vertex, which hardly move in a hold, keep the regular cadence (``metered``)
+    and are held between.
     Lists, not arrays: the step loop reads one element at a time, faster from a list.
     """
 
@@ -507,7 +521,7 @@ def _schedule(profile: Profile, dt: float, record_hz: float) -> _Schedule:
     changes = np.flatnonzero(np.diff(scale, prepend=np.nan) != 0)
     rescale = dict(zip((i_scaled + changes).tolist(), scale[changes].tolist(), strict=True))
     metered = np.arange(n) % every == 0
-    record = (metered | (np.arange(n) >= i_scaled)).tolist()
+    record = (metered | profile.scaled).tolist()
     return _Schedule(i_scaled, t_physical, rescale, metered.tolist(), record)
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from gymnasium import spaces
 
 from fetch_env import clipping
-from fetch_env.controller import FetchAction, FetchSimulator, SimResult
+from fetch_env.controller import FetchAction, FetchSimulator, SimResult, TimeScale
 from fetch_env.env_scenes import (
     LAYOUTS,
     SAMPLING,
@@ -101,6 +101,9 @@ VERSION_DEFAULTS: dict[str, dict[str, Any]] = {
     "v1": {"time_weight": 0.1, "damage": "per_piece", "scenes": "wide"},
 }
 RESET_OPTIONS: tuple[str, ...] = ("preset", "pieces")
+# The start of each fetch hold simulated in real time under ``fetch_hold_scale``: a piece
+# still rocks in the clamp, or swings on the lift, for its first tens of ms.
+FETCH_HOLD_REALTIME = 0.1  # [s]
 _CACHE_SIZE = 8  # compiled scenes (and probe outcomes) kept per env, least recently used out
 
 
@@ -249,6 +252,7 @@ _COMMON_DOC = """
     | contact_timeconst | 0.01 | contacts' time constant [s] (see Geometry.contact_timeconst) |
     | fetch_timestep | 0.005 | the fetch's physics step [s], 0.001-0.01 (probes keep their own) |
     | fetch_impratio | None | fetch's friction impratio, 1-1e4 (None: 1000, 100 if several pieces) |
+    | fetch_hold_scale | 1.0 | fetch's holds past their first 0.1 s quasi-static, 1-20 (1: off) |
     | render_mode | None | None, "rgb_array", "rgb_array_list" or "human" (needs a display) |
     | width | 480 | frame width [px] |
     | height | 360 | frame height [px] |
@@ -267,6 +271,17 @@ _COMMON_DOC = """
     floor (the 2.5 ms run against itself with every piece moved 1 nm), and 2-3x as many mixes
     crushed a soft die (``benchmarks/bench_step_size.py --twins``,
     ``docs/validation/step-size.md``).
+
+    ``fetch_hold_scale`` > 1 steps the fetch's two holds (on the plate after the clamp, in
+    the air after the lift) quasi-statically past their first ``FETCH_HOLD_REALTIME`` (0.1 s),
+    as the relaxation probe's hold is (``fetch_env.controller.TimeScale``): each physics step
+    stands for ``fetch_hold_scale`` steps of the food's relaxation, so a hold costs fewer
+    steps while the blades stand still; ``info["traces"]`` then has a sample at every step of
+    a scaled hold (every 25 ms at 5) instead of 100 Hz.  It changes a fetch's numbers (as a
+    1 nm move of the pieces does: the fetch is chaotic), so it is off (1) on every id; how
+    far outcomes move against the real-time fetch and the chaos floor, and the speed it
+    buys, are measured in ``docs/validation/quasi-static-holds.md``
+    (``benchmarks/bench_quasi_static.py``).
 
     ## Version history
     - v1 (0.2.0): rewards and scenes that measure what a feeding robot must do, so that no
@@ -373,8 +388,12 @@ def _check_probe_options(probe_hold: float, probe_omega: float, probe_strain: fl
             "in [0, 0.5]")
 
 
-def _check_fetch_physics(fetch_timestep: float, fetch_impratio: float | None) -> None:
-    """Refuse a fetch step outside [1, 10] ms and an impratio that is not None or in [1, 1e4]."""
+def _check_fetch_physics(fetch_timestep: float, fetch_impratio: float | None,
+                         fetch_hold_scale: float) -> None:
+    """Refuse a fetch step outside [1, 10] ms, an impratio that is not None or in [1, 1e4]
+    and a hold scale outside [1, 20]."""
+    require(math.isfinite(fetch_hold_scale) and 1 <= fetch_hold_scale <= 20,
+            "fetch_hold_scale", fetch_hold_scale, "in [1, 20]")
     require(math.isfinite(fetch_timestep) and 0.001 <= fetch_timestep <= 0.01,
             "fetch_timestep", fetch_timestep, "in [0.001, 0.01] s")
     require(fetch_impratio is None or (isinstance(fetch_impratio, (int, float))
@@ -423,6 +442,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         contact_timeconst: float = 0.01,
         fetch_timestep: float = 0.005,
         fetch_impratio: float | None = None,
+        fetch_hold_scale: float = 1.0,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -440,7 +460,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         FetchAction(hold=hold, lift_height=lift_height, air_hold=air_hold, settle=settle)
         probe_config = _probe_config(probes, probe_hold, probe_omega, probe_strain,
                                      probe_time_scale, probe_time_growth)
-        _check_fetch_physics(fetch_timestep, fetch_impratio)
+        _check_fetch_physics(fetch_timestep, fetch_impratio, fetch_hold_scale)
 
         self.layout = layout
         self.estimator = estimator
@@ -464,6 +484,9 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         self.probe_calibration = self._calibration_for(probe_calibrated)
         self.fetch_timestep = float(fetch_timestep)
         self.fetch_impratio = None if fetch_impratio is None else float(fetch_impratio)
+        self.fetch_hold_scale = float(fetch_hold_scale)
+        self._fetch_time_scale = (None if fetch_hold_scale == 1 else
+                                  TimeScale(self.fetch_hold_scale, realtime=FETCH_HOLD_REALTIME))
         self.render_mode = render_mode
         self.width, self.height, self.camera = width, height, camera
         self._init_spaces_and_state()
@@ -689,7 +712,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         info["clipped"] = [*info.get("clipped", []), *clipped]
         clipping.warn_once(self, clipped, 'info["clipped"]')
         try:
-            result: SimResult | None = sim.run("fetch", fa)
+            result: SimResult | None = sim.run("fetch", fa, time_scale=self._fetch_time_scale)
         except SimulationDivergedError as exc:
             result = None
             info.update(reward_fetch=0.0, reward_deformation=0.0, reward_time=reward_time,

@@ -496,7 +496,7 @@ def test_a_diverged_episode_ends_with_an_error_and_the_next_reset_works(monkeypa
     env.reset(options={"preset": "block"})
     real_run = FetchSimulator.run
 
-    def diverge(self, experiment="fetch", action=None):
+    def diverge(self, experiment="fetch", action=None, time_scale=None):
         raise SimulationDivergedError("bad or non-finite acceleration at t=0.1 s in fetch",
                                       {}, action.to_dict())
 

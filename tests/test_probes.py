@@ -202,7 +202,7 @@ def test_time_scale_is_validated_before_any_physics() -> None:
     with pytest.raises(InvalidParameterError, match="timestep"):
         FetchSimulator(single_block(), timestep=float("nan"))
     with pytest.raises(InvalidParameterError, match="time_scale"):
-        FetchSimulator(single_block()).run("fetch", FetchAction(), time_scale=TimeScale(8.0))
+        FetchSimulator(single_block()).run("slip", FetchAction(), time_scale=TimeScale(8.0))
 
 
 @pytest.mark.parametrize("mu", [0.1, 0.3, 0.5])

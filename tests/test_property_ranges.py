@@ -764,11 +764,11 @@ def test_simulator_settings_in_range_or_typed_error(field_value: tuple[str, Any]
 def test_run_arguments_are_checked_before_any_physics(experiment: Any, action: Any,
                                                       time_scale: Any) -> None:
     """An unknown experiment, a non-FetchAction action, a non-TimeScale time scale or a
-    scaled hold outside the relaxation probe: refused by name before any scene is built."""
+    scaled slip (it has no hold to scale): refused by name before any scene is built."""
     ok = (isinstance(experiment, str) and experiment in ("fetch", "relaxation", "slip")
           and (action is None or isinstance(action, FetchAction))
           and (time_scale is None or isinstance(time_scale, TimeScale))
-          and (time_scale is None or experiment == "relaxation" or not time_scale.scaled))
+          and (time_scale is None or experiment != "slip" or not time_scale.scaled))
     assume(not ok)  # (valid runs: the physics property)
     sim = FetchSimulator(layouts.single_block())
     with pytest.raises(InvalidParameterError) as exc_info:

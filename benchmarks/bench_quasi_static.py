@@ -1,0 +1,196 @@
+"""Quasi-static fetch holds: how far they move each id's outcomes, against the chaos floor,
+and what they save.
+
+For each id and seeded scene (``reset(seed=S)``, one action drawn uniformly from the action
+box with a generator seeded by S), the same fetch is simulated by ``simulate_action``:
+
+* in real time (``fetch_hold_scale=1``, every id's default): the reference;
+* on its **twin**, the scene with every piece moved 1 nm along x (a seeded sign per piece),
+  in real time: how much a change of nothing physical moves the outcome, the chaos floor;
+* with each ``fetch_hold_scale`` asked for (the holds on the plate and in the air past their
+  first 0.1 s stepped quasi-statically).
+
+Per run: each piece fetched or not, the reward and the step's CPU time (the fetch; the
+reset's CPU time is taken once per scene, from the reference env, to turn fetch savings into
+episodes per core).  A scale is as good as the physics allows where its pieces agree with the
+reference as often as the twin's do and its paired reward difference is as small.
+
+Run: python benchmarks/bench_quasi_static.py --seeds 60000:60040 --scales 5 --workers 2 \\
+       --json docs/data/quasi_static.json
+     python benchmarks/bench_quasi_static.py --page docs/data/quasi_static.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import statistics
+import sys
+import time
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import fetch_env  # noqa: F401  (registers the ids)
+from benchmarks.readme_meta import meta, rewrite_block, write_json
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGE = ROOT / "docs" / "validation" / "quasi-static-holds.md"
+DEFAULT_IDS = ("FoodFetch-Block-v1", "FoodFetch-Row-v1", "FoodFetch-TwoRows-v1",
+               "FoodFetch-Diced-v1")
+TWIN_SHIFT = 1e-9  # [m] as benchmarks/bench_step_size.py: physically nothing
+
+
+def _fetch(env: gym.Env, action: np.ndarray) -> dict[str, Any]:
+    t = time.thread_time()
+    reward, info = env.unwrapped.simulate_action(action)
+    cpu = time.thread_time() - t
+    return {"reward": float(reward), "cpu": cpu,
+            "fetched": [bool(p["fetched"]) for p in info.get("pieces", [])],
+            "error": info.get("error")}
+
+
+def run_scene(env_id: str, seed: int, scales: tuple[float, ...]) -> dict[str, Any]:
+    """The reference, its twin and each scale on one seeded scene and action."""
+    warnings.simplefilter("ignore")  # clipped moduli: said once per env elsewhere
+    action = np.random.default_rng(seed).uniform(-1.0, 1.0, 3).astype(np.float32)
+    ref = gym.make(env_id)
+    t = time.thread_time()
+    ref.reset(seed=seed)
+    out: dict[str, Any] = {"seed": seed, "reset_cpu": time.thread_time() - t,
+                           "n_pieces": len(ref.unwrapped.pieces), "ref": _fetch(ref, action)}
+    pieces = ref.unwrapped.pieces
+    signs = np.random.default_rng(seed).choice([-1.0, 1.0], size=len(pieces))
+    moved = [dataclasses.replace(p, x=p.x + s * TWIN_SHIFT)
+             for p, s in zip(pieces, signs, strict=True)]
+    ref.reset(seed=seed, options={"pieces": moved})
+    out["twin"] = _fetch(ref, action)
+    ref.close()
+    for k in scales:
+        env = gym.make(env_id, fetch_hold_scale=k)
+        env.reset(seed=seed)
+        out[f"x{k:g}"] = _fetch(env, action)
+        env.close()
+    return out
+
+
+def summarize(records: list[dict[str, Any]], runs: list[str]) -> dict[str, Any]:
+    """Per run: pieces and scenes as the reference, the paired reward difference (mean, its
+    standard error, median of its size), and the fetch's and the episode's CPU against the
+    reference's."""
+    n_pieces = sum(len(r["ref"]["fetched"]) for r in records)
+    ref_cpu = sum(r["ref"]["cpu"] for r in records)
+    reset_cpu = sum(r["reset_cpu"] for r in records)
+    out: dict[str, Any] = {"scenes": len(records), "pieces": n_pieces}
+    for run in runs:
+        same = sum(a == b for r in records
+                   for a, b in zip(r["ref"]["fetched"], r[run]["fetched"], strict=False))
+        whole = sum(r["ref"]["fetched"] == r[run]["fetched"] for r in records)
+        diff = [r[run]["reward"] - r["ref"]["reward"] for r in records]
+        cpu = sum(r[run]["cpu"] for r in records)
+        out[run] = {
+            "pieces_as_reference": same, "scenes_as_reference": whole,
+            "reward_diff_mean": statistics.fmean(diff),
+            "reward_diff_se": statistics.stdev(diff) / math.sqrt(len(diff)),
+            "reward_diff_abs_median": statistics.median(abs(d) for d in diff),
+            "fetch_cpu_ratio": cpu / ref_cpu,
+            "episode_speedup": (reset_cpu + ref_cpu) / (reset_cpu + cpu),
+            "errors": sum(r[run]["error"] is not None for r in records)}
+    return out
+
+
+def page(data: dict[str, Any]) -> str:
+    """The validation page's results table and footer, from the JSON."""
+    lines = ["| id | run | pieces as real time | scenes as real time | reward - real time "
+             "(paired mean ± s.e.) | median abs reward change | fetch CPU | episodes per "
+             "core |", "|---|---|---|---|---|---|---|---|"]
+    for env_id, s in data["summary"].items():
+        for run in ("twin", *data["runs"]):
+            r = s[run]
+            name = "1 nm twin (chaos floor)" if run == "twin" else f"hold scale {run[1:]}"
+            lines.append(
+                f"| {env_id.removeprefix('FoodFetch-')} | {name} | {r['pieces_as_reference']} "
+                f"/ {s['pieces']} ({r['pieces_as_reference'] / s['pieces']:.1%}) | "
+                f"{r['scenes_as_reference']} / {s['scenes']} | {r['reward_diff_mean']:+.3f} ± "
+                f"{r['reward_diff_se']:.3f} | {r['reward_diff_abs_median']:.3f} | "
+                f"{r['fetch_cpu_ratio']:.2f}x | {r['episode_speedup']:.2f}x |")
+    m = data["meta"]
+    lines += ["", f"{m['machine']}, at {m['commit']}; scenes from seed {data['seeds'][0]} to "
+              f"{data['seeds'][1] - 1} per id: `{m['command']}`"]
+    return "\n".join(lines)
+
+
+BEGIN = "<!-- quasi-static-table: generated by benchmarks/bench_quasi_static.py --page -->"
+END = "<!-- /quasi-static-table -->"
+
+
+def write_page(data: dict[str, Any], path: Path = PAGE) -> None:
+    rewrite_block(path, BEGIN, END, page(data))
+
+
+def _seed_range(text: str) -> tuple[int, int]:
+    a, _, b = text.partition(":")
+    try:
+        lo, hi = int(a), int(b)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not START:STOP") from None
+    if not 0 <= lo < hi:
+        raise argparse.ArgumentTypeError(f"{text!r}: need 0 <= START < STOP")
+    return lo, hi
+
+
+def _scales(text: str) -> tuple[float, ...]:
+    try:
+        out = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a list of numbers") from None
+    bad = [k for k in out if not 1 < k <= 20]
+    if bad:
+        raise argparse.ArgumentTypeError(f"scale {bad[0]:g} is not in (1, 20]")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--ids", nargs="+", default=list(DEFAULT_IDS))
+    p.add_argument("--seeds", type=_seed_range, default=(60000, 60040), metavar="START:STOP")
+    p.add_argument("--scales", type=_scales, default=(5.0,), metavar="K[,K...]")
+    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--json", type=Path, default=None, metavar="FILE")
+    p.add_argument("--page", type=Path, default=None, metavar="FILE",
+                   help="only rewrite docs/validation/quasi-static-holds.md's table from FILE")
+    args = p.parse_args(argv)
+    if args.page is not None:
+        write_page(json.loads(args.page.read_text()))
+        return 0
+    unknown = [i for i in args.ids if i not in gym.registry]
+    if unknown:
+        p.error(f"--ids: {unknown[0]!r} is not a registered id")
+    if args.workers < 1:
+        p.error(f"--workers must be >= 1, got {args.workers}")
+    runs = ["twin", *(f"x{k:g}" for k in args.scales)]
+    seeds = list(range(*args.seeds))
+    data: dict[str, Any] = {"meta": meta(), "seeds": list(args.seeds), "runs": runs[1:],
+                            "summary": {}, "records": {}}
+    with ProcessPoolExecutor(args.workers) as pool:
+        for env_id in args.ids:
+            records = list(pool.map(run_scene, [env_id] * len(seeds), seeds,
+                                    [args.scales] * len(seeds)))
+            data["records"][env_id] = records
+            data["summary"][env_id] = summarize(records, runs)
+            if args.json is not None:  # each id as it finishes
+                write_json(args.json, data)
+    print(page(data))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
