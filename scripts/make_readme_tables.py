@@ -133,7 +133,7 @@ def speed_table(data: dict[str, Any]) -> str:
             f"| one fetch, 9-piece diced mix (median of seeds {seeds}) | "
             f"{diced['realtime']:.1f}x real time; {diced['ratio_in_run']:.2f}x its `mj_step` |"]
     for env_id, e in envs.items():
-        rows.append(f"| {env_id} episodes | {e['eps_cpu']:.2f}/CPU s ({e['eps']:.2f}/wall s), "
+        rows.append(f"| {env_id} episodes | {e['eps_cpu']:.2f} per CPU s, "
                     f"probes {100 * e['probe_share']:.0f} % |")
     meta = data["meta"]
     load = (f"{meta['load_average_at_start']:g} at the start, "
