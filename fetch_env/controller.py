@@ -108,7 +108,8 @@ class FetchAction:
 
 @dataclass(frozen=True)
 class TimeScale:
-    """Quasi-static time scaling of the relaxation hold (the env's probes use it).
+    """Quasi-static time scaling of a hold: the relaxation probe's (the env's probes use it)
+    and, opt-in (the env's ``fetch_hold_scale``), the fetch's holds on the plate and in the air.
 
     Past the hold's first ``realtime`` seconds the blades stand still and only the food
     relaxes, slowly (tau_1 of seconds) against the mechanics (the contact's and the servo's
@@ -123,7 +124,9 @@ class TimeScale:
     are: scaling their damping down with the rest made them chatter (moment noise of +-5 %,
     measured).
     The first ``realtime`` seconds stay physical because a piece is still settling into the
-    clamp then (it rocks for up to ~0.25 s, see ``probes.HOLD_SETTLE``).
+    clamp then (it rocks for up to ~0.25 s, see ``probes.HOLD_SETTLE``; the fetch's holds
+    keep 0.1 s, ``fetch_env.env.FETCH_HOLD_REALTIME``, which ``tests/test_quasi_static_fetch.py``
+    and docs/validation/quasi-static-holds.md hold to the real-time fetch).
 
     ``growth`` > 0 spaces the scaled steps logarithmically, as a relaxation test records its
     samples: each step stands for at least ``growth`` times the physical time elapsed since
