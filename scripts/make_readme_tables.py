@@ -100,15 +100,14 @@ def headroom_table(data: dict[str, Any]) -> str:
     parts = {env_id: _machine_parts(r["meta"]["machine"]) for env_id, r in results.items()}
     cores = parts[next(iter(results))][0]
     runs = ", ".join(f"{env_id.removeprefix('FoodFetch-')} at {r['meta']['commit']} "
-                     f"({r['meta']['wall_s'] / 60:.0f} min, {parts[env_id][1]})"
-                     for env_id, r in results.items())
+                     f"({parts[env_id][1]})" for env_id, r in results.items())
     return ("\n".join(rows) + f"\n\nMean reward [95 %], {n} scenes per id from seed "
             f"{seed.group(1) if seed else '?'} (never tuned on); regret: search less "
             f"model-based, paired; orderings: search beats study by >= {data['margin']:g}, "
             "model-based beats random and study, intervals apart" + _shortfalls(results)
             + f". {cores}; {runs}: `python benchmarks/headroom.py --ids ID "
-            "--episodes 200 --seed 80000 --workers 2`. The learned agents' budgets and the "
-            "size-only ablation: [docs/agents.md](docs/agents.md#headroom-on-the-benchmark-ids).")
+            "--episodes 200 --seed 80000 --workers 2`. Run times, training budgets, the "
+            "size-only agent: [docs/agents.md](docs/agents.md#headroom-on-the-benchmark-ids).")
 
 
 def _shortfalls(results: dict[str, Any]) -> str:
