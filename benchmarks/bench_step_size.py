@@ -41,8 +41,12 @@ from concurrent.futures import ProcessPoolExecutor
 import mujoco
 import numpy as np
 
-from fetch_env.controller import FetchAction, FetchSimulator, TimeScale, make_profile
-from fetch_env.env import FETCH_HOLD_REALTIME
+from fetch_env.controller import (
+    FetchAction,
+    FetchSimulator,
+    fetch_hold_time_scale,
+    make_profile,
+)
 from fetch_env.layouts import diced_mix
 
 CRUSHED_LOG_STRAIN = 1.0  # above it a piece's one-cell flex has inverted (README, "Crushed")
@@ -65,7 +69,7 @@ def run_mix(seed: int, steps: tuple[float, ...], theta_d: float, twins: bool = F
     out = []
     for (dt, imp, k), layout in ([(c, pieces) for c in configs]
                                  + [(c, moved) for c in configs if twins]):
-        scale = None if k == 1 else TimeScale(k, realtime=FETCH_HOLD_REALTIME)
+        scale = fetch_hold_time_scale(k)
         action = FetchAction(theta_d=theta_d)
         r = FetchSimulator(layout, timestep=dt, impratio=imp).run("fetch", action,
                                                                   time_scale=scale)

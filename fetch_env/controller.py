@@ -125,7 +125,7 @@ class TimeScale:
     measured).
     The first ``realtime`` seconds stay physical because a piece is still settling into the
     clamp then (it rocks for up to ~0.25 s, see ``probes.HOLD_SETTLE``; the fetch's holds
-    keep 0.1 s, ``fetch_env.env.FETCH_HOLD_REALTIME``, which ``tests/test_quasi_static_fetch.py``
+    keep 0.1 s, ``FETCH_HOLD_REALTIME``, which ``tests/test_quasi_static_fetch.py``
     and docs/validation/quasi-static-holds.md hold to the real-time fetch).
 
     ``growth`` > 0 spaces the scaled steps logarithmically, as a relaxation test records its
@@ -171,6 +171,17 @@ class TimeScale:
             steps.append(h)
             elapsed += h
         return np.array(steps)
+
+
+# The start of each fetch hold simulated in real time when the holds are time-scaled: a piece
+# still rocks in the clamp, or swings on the lift, for its first tens of ms.
+FETCH_HOLD_REALTIME = 0.1  # [s]
+
+
+def fetch_hold_time_scale(scale: float) -> TimeScale | None:
+    """The :class:`TimeScale` of a fetch whose holds are scaled by ``scale`` past their first
+    ``FETCH_HOLD_REALTIME`` (None: 1, real time; the env's ``fetch_hold_scale``)."""
+    return None if scale == 1 else TimeScale(float(scale), realtime=FETCH_HOLD_REALTIME)
 
 
 @dataclass

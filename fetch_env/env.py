@@ -23,7 +23,7 @@ import numpy as np
 from gymnasium import spaces
 
 from fetch_env import clipping
-from fetch_env.controller import FetchAction, FetchSimulator, SimResult, TimeScale
+from fetch_env.controller import FetchAction, FetchSimulator, SimResult, fetch_hold_time_scale
 from fetch_env.env_scenes import (
     LAYOUTS,
     SAMPLING,
@@ -101,9 +101,6 @@ VERSION_DEFAULTS: dict[str, dict[str, Any]] = {
     "v1": {"time_weight": 0.1, "damage": "per_piece", "scenes": "wide"},
 }
 RESET_OPTIONS: tuple[str, ...] = ("preset", "pieces")
-# The start of each fetch hold simulated in real time under ``fetch_hold_scale``: a piece
-# still rocks in the clamp, or swings on the lift, for its first tens of ms.
-FETCH_HOLD_REALTIME = 0.1  # [s]
 _CACHE_SIZE = 8  # compiled scenes (and probe outcomes) kept per env, least recently used out
 
 
@@ -273,7 +270,8 @@ _COMMON_DOC = """
     ``docs/validation/step-size.md``).
 
     ``fetch_hold_scale`` > 1 steps the fetch's two holds (on the plate after the clamp, in
-    the air after the lift) quasi-statically past their first ``FETCH_HOLD_REALTIME`` (0.1 s),
+    the air after the lift) quasi-statically past their first 0.1 s
+    (``fetch_env.controller.FETCH_HOLD_REALTIME``),
     as the relaxation probe's hold is (``fetch_env.controller.TimeScale``): each physics step
     stands for ``fetch_hold_scale`` steps of the food's relaxation, so a hold costs fewer
     steps while the blades stand still; ``info["traces"]`` then has a sample at every step of
@@ -485,8 +483,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         self.fetch_timestep = float(fetch_timestep)
         self.fetch_impratio = None if fetch_impratio is None else float(fetch_impratio)
         self.fetch_hold_scale = float(fetch_hold_scale)
-        self._fetch_time_scale = (None if fetch_hold_scale == 1 else
-                                  TimeScale(self.fetch_hold_scale, realtime=FETCH_HOLD_REALTIME))
+        self._fetch_time_scale = fetch_hold_time_scale(self.fetch_hold_scale)
         self.render_mode = render_mode
         self.width, self.height, self.camera = width, height, camera
         self._init_spaces_and_state()

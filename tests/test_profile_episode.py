@@ -60,10 +60,8 @@ def test_fetch_steps_are_counted_by_the_profiles_phases(monkeypatch: pytest.Monk
     reset = r["stages"]["reset"]["parts"]
     assert reset["physics"]["steps"] > 100  # the relaxation and slip probes
     assert reset["scene build"]["cpu_s"] > 0 and reset["probe fits"]["cpu_s"] > 0
-    for stage in r["stages"].values():
-        assert sum(p["cpu_s"] for p in stage["parts"].values()) == pytest.approx(stage["cpu_s"])
-    assert r["cpu_s_per_episode"] == pytest.approx(
-        sum(s["cpu_s"] for s in r["stages"].values()))
+    for stage in r["stages"].values():  # the timed parts lie inside the stage: none counted twice
+        assert stage["parts"]["other"]["cpu_s"] >= -1e-3, stage
 
 
 def test_the_docs_table_is_the_committed_profile() -> None:
