@@ -15,6 +15,10 @@ reset's CPU time is taken once per scene, from the reference env, to turn fetch 
 episodes per core).  A scale is as good as the physics allows where its pieces agree with the
 reference as often as the twin's do and its paired reward difference is as small.
 
+Each scene is kept as it finishes (``--json`` rewritten atomically, ``"complete": false``
+until the end): Ctrl-C, SIGTERM or a lost worker ends the run in one line with every
+finished scene and its id's summary in the file.
+
 Run: python benchmarks/bench_quasi_static.py --seeds 60000:60040 --scales 5 --workers 2 \\
        --json docs/data/quasi_static.json
      python benchmarks/bench_quasi_static.py --page docs/data/quasi_static.json
@@ -26,11 +30,13 @@ import argparse
 import dataclasses
 import json
 import math
+import signal
 import statistics
 import sys
 import time
 import warnings
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any
 
@@ -40,7 +46,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import fetch_env  # noqa: F401  (registers the ids)
+from agents.evaluate import _close_pool
 from benchmarks.readme_meta import meta, rewrite_block, write_json
+from benchmarks.validate_estimators import _worker_signals
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "validation" / "quasi-static-holds.md"
@@ -99,7 +107,8 @@ def summarize(records: list[dict[str, Any]], runs: list[str]) -> dict[str, Any]:
         out[run] = {
             "pieces_as_reference": same, "scenes_as_reference": whole,
             "reward_diff_mean": statistics.fmean(diff),
-            "reward_diff_se": statistics.stdev(diff) / math.sqrt(len(diff)),
+            "reward_diff_se": (statistics.stdev(diff) / math.sqrt(len(diff)) if len(diff) > 1
+                               else math.nan),
             "reward_diff_abs_median": statistics.median(abs(d) for d in diff),
             "fetch_cpu_ratio": cpu / ref_cpu,
             "episode_speedup": (reset_cpu + ref_cpu) / (reset_cpu + cpu),
@@ -177,19 +186,49 @@ def main(argv: list[str] | None = None) -> int:
     if args.workers < 1:
         p.error(f"--workers must be >= 1, got {args.workers}")
     runs = ["twin", *(f"x{k:g}" for k in args.scales)]
-    seeds = list(range(*args.seeds))
     data: dict[str, Any] = {"meta": meta(), "seeds": list(args.seeds), "runs": runs[1:],
-                            "summary": {}, "records": {}}
-    with ProcessPoolExecutor(args.workers) as pool:
-        for env_id in args.ids:
-            records = list(pool.map(run_scene, [env_id] * len(seeds), seeds,
-                                    [args.scales] * len(seeds)))
-            data["records"][env_id] = records
-            data["summary"][env_id] = summarize(records, runs)
-            if args.json is not None:  # each id as it finishes
-                write_json(args.json, data)
+                            "summary": {}, "records": {}, "complete": False}
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, _raise_interrupt)
+    try:
+        _measure(args, runs, data)
+    except (KeyboardInterrupt, BrokenProcessPool) as exc:
+        why = "stopped" if isinstance(exc, KeyboardInterrupt) else "a worker died"
+        kept = f"what finished is in {args.json}" if args.json else "--json FILE keeps it"
+        print(f"bench_quasi_static: {why}; {kept} (\"complete\": false)", file=sys.stderr)
+        return 130 if isinstance(exc, KeyboardInterrupt) else 1
     print(page(data))
     return 0
+
+
+def _raise_interrupt(signum: int, _frame: Any) -> None:
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
+def _measure(args: argparse.Namespace, runs: list[str], data: dict[str, Any]) -> None:
+    """Run every id's scenes, keeping each scene as it finishes: ``data`` (and ``--json``,
+    rewritten atomically) holds every finished scene, in seed order, and each id's summary
+    of them, whenever the run stops."""
+    seeds = list(range(*args.seeds))
+    pool = ProcessPoolExecutor(args.workers, initializer=_worker_signals)
+    clean = False
+    try:
+        for env_id in args.ids:
+            done: dict[int, dict[str, Any]] = {}
+            futures = [pool.submit(run_scene, env_id, seed, args.scales) for seed in seeds]
+            for future in as_completed(futures):
+                record = future.result()
+                done[record["seed"]] = record
+                data["records"][env_id] = [done[k] for k in sorted(done)]
+                data["summary"][env_id] = summarize(data["records"][env_id], runs)
+                if args.json is not None:
+                    write_json(args.json, data)
+        clean = True
+    finally:
+        _close_pool(pool, clean)  # after a stop or a lost worker, the workers end too
+    data["complete"] = True
+    if args.json is not None:
+        write_json(args.json, data)
 
 
 if __name__ == "__main__":
