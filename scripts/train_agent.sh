@@ -9,7 +9,8 @@
 #   OVERWRITE=1 scripts/train_agent.sh FoodFetch-Row-v1 sac  # train again into a used folder
 #   SKIP_EVAL=1 ...                                           # train only
 #
-# Writes out/<algo>_<id>/ (model.zip, config.yml, logs) and out/<algo>_<id>/heldout.json;
+# Writes out/<algo>_<id>/ (model.zip, config.yml, logs), out/<algo>_<id>/heldout.json and
+# heldout.episodes.jsonl (each scene's reward, for scripts/add_trained_agent.py --paired-with);
 # the wall time of training is printed and stored in train_wall.txt beside the model.
 set -euo pipefail
 ENV_ID="${1:?usage: scripts/train_agent.sh ENV_ID ALGO}"
@@ -29,5 +30,6 @@ echo "$wall" > "$OUT/train_wall.txt"
 echo "training wall time: $wall s"
 if [[ "${SKIP_EVAL:-0}" != 1 ]]; then
     food-fetch evaluate --agent "$OUT/model.zip" --env "$ENV_ID" --episodes "$EPISODES" \
-        --seed "$EVAL_SEED" --workers "${WORKERS:-1}" --json "$OUT/heldout.json"
+        --seed "$EVAL_SEED" --workers "${WORKERS:-1}" --json "$OUT/heldout.json" \
+        --episodes-log "$OUT/heldout.episodes.jsonl"
 fi
