@@ -99,15 +99,19 @@ def headroom_table(data: dict[str, Any]) -> str:
     seed = re.search(r"--seed (\d+)", first["command"])
     parts = {env_id: _machine_parts(r["meta"]["machine"]) for env_id, r in results.items()}
     cores = parts[next(iter(results))][0]
-    runs = ", ".join(f"{env_id.removeprefix('FoodFetch-')} at {r['meta']['commit']} "
-                     f"({parts[env_id][1]})" for env_id, r in results.items())
+    by_run: dict[tuple[str, str], list[str]] = {}
+    for env_id, r in results.items():
+        by_run.setdefault((r["meta"]["commit"], parts[env_id][1]), []).append(
+            env_id.removeprefix("FoodFetch-"))
+    runs = ", ".join(f"{' and '.join(ids)} at {commit} ({cpu})"
+                     for (commit, cpu), ids in by_run.items())
     return ("\n".join(rows) + f"\n\nMean reward [95 %], {n} scenes per id from seed "
             f"{seed.group(1) if seed else '?'} (never tuned on); regret: search less "
             f"model-based, paired; orderings: search beats study by >= {data['margin']:g}, "
             "model-based beats random and study, intervals apart" + _shortfalls(results)
             + f". {cores}; {runs}: `python benchmarks/headroom.py --ids ID "
-            "--episodes 200 --seed 80000 --workers 2`. Run times, training budgets, the "
-            "size-only agent: [docs/agents.md](docs/agents.md#headroom-on-the-benchmark-ids).")
+            "--episodes 200 --seed 80000 --workers 2`. Run times, training budgets: "
+            "[docs/agents.md](docs/agents.md#headroom-on-the-benchmark-ids).")
 
 
 def _shortfalls(results: dict[str, Any]) -> str:
@@ -115,8 +119,17 @@ def _shortfalls(results: dict[str, Any]) -> str:
     def words(check: str) -> str:
         return check.replace("_", " ").replace("model based", "model-based")
 
+    def joined(checks: list[str]) -> str:
+        """"model-based above random and study" for checks that share their subject."""
+        by_subject: dict[str, list[str]] = {}
+        for c in checks:
+            subject, _, rest = words(c).partition(" above ")
+            by_subject.setdefault(subject, []).append(rest)
+        return ", ".join(f"{s} above {' and '.join(r)}" if all(r) else s
+                         for s, r in by_subject.items())
+
     failed = [f"{env_id.removeprefix('FoodFetch-')}: "
-              + ", ".join(words(k) for k, ok in r["checks"].items() if not ok)
+              + joined([k for k, ok in r["checks"].items() if not ok])
               for env_id, r in results.items() if not r["all_hold"]]
     return "" if not failed else " (not met: " + "; ".join(failed) + ")"
 
