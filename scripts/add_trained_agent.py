@@ -24,9 +24,16 @@ ROOT = Path(__file__).resolve().parents[1]
 HEADROOM = ROOT / "docs" / "data" / "headroom.json"
 
 
-def _rewards(log: Path) -> dict[int, float]:
+def _rewards(log: Path, agent: str | None = None) -> dict[int, float]:
+    """Each scene's reward in an episode log (JSON Lines), by seed; ``agent`` keeps only
+    that agent's episodes (a log of several agents holds each seed once per agent)."""
     rows = [json.loads(line) for line in log.read_text().splitlines()[1:] if line.strip()]
-    return {int(r["seed"]): float(r["reward"]) for r in rows}
+    if agent is not None:
+        rows = [r for r in rows if r.get("agent") == agent]
+    by_seed = {int(r["seed"]): float(r["reward"]) for r in rows}
+    if len(by_seed) != len(rows):
+        sys.exit(f"{log}: a seed appears more than once; give one agent's episodes")
+    return by_seed
 
 
 def _paired(agent_log: Path, baseline_log: Path) -> dict[str, object]:
@@ -34,7 +41,7 @@ def _paired(agent_log: Path, baseline_log: Path) -> dict[str, object]:
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from headroom import paired_difference
 
-    a, b = _rewards(agent_log), _rewards(baseline_log)
+    a, b = _rewards(agent_log), _rewards(baseline_log, agent="model-based")
     seeds = sorted(set(a) & set(b))
     return paired_difference([a[s] for s in seeds], [b[s] for s in seeds])
 
