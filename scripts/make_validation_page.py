@@ -141,7 +141,8 @@ def step_convergence_section() -> str:
     spread = data["summary"]["spread"]["tau1"]
     return ("## What the simulated measurement allows: the physics step\n\n"
             f"The `measure` probes on the first {coarse['foods']} tuning foods, without the "
-            "calibration, at relaxation physics steps from 5 ms down to 0.25 ms "
+            f"calibration, at relaxation physics steps from {1e3 * coarse['step']:g} ms down "
+            f"to {1e3 * fine['step']:g} ms "
             "(`fetch_env.probes.ProbeConfig.relaxation_timestep`).  g1's bias goes away "
             f"as the step shrinks ({100 * coarse['g1']['median_signed']:+.2f} % at "
             f"{1e3 * coarse['step']:g} ms, {100 * fine['g1']['median_signed']:+.2f} % at "
