@@ -87,17 +87,12 @@ class ModelBasedConfig:
     omega_fast: float = 0.4  # [rad/s] clamp speed when time costs (the action's fastest)
     lift_speed_fast: float = 0.04  # [m/s] lift speed when time costs (the action's fastest)
     eps_min_two_rows: float = 0.07  # nominal squeeze of a two-row plate's span
-    mix_strain_share: float | None = None  # a mix's squeeze cap, in safe strains of one piece
-    mix_limited_eps: float | None = None  # a mix's squeeze when the grip rule asks too much
     layout: str | None = None  # the scene family; None: the env's, read at begin_episode
 
 
 # Layouts whose squeeze is a fixed share of the span instead of the grip rule's (see the
 # module docstring), with the config field that holds the share.
 FIXED_SQUEEZE_LAYOUTS: dict[str, str] = {"two_rows": "eps_min_two_rows"}
-# Layouts of pieces of unknown, differing stiffness in series along the clamp, where the
-# softest piece takes the squeeze (see the module docstring, "Mixes").
-MIX_LAYOUTS: frozenset[str] = frozenset({"diced"})
 
 
 class ModelBasedAgent(Agent):
@@ -170,13 +165,7 @@ class ModelBasedAgent(Agent):
             if eps > eps_safe:
                 limited = "grip needs more squeeze than the safe strain"
                 eps = max(min(eps_grip, eps_cap), eps_safe)
-                if c.mix_limited_eps is not None and self.layout in MIX_LAYOUTS:
-                    eps = c.mix_limited_eps
         dx = eps * w / 2.0
-        dx_mix = self._mix_squeeze_cap(float(d["mean_size"]), eps_safe)
-        if dx_mix < dx:
-            dx, eps = dx_mix, 2.0 * dx_mix / w
-            limited = "squeeze capped at the safe strain of the mix's softest piece"
         # A fast clamp that would stall squeezes less if that still grips (one piece only: in
         # a mix the probed piece's stiffness says little about the others').
         if self.time_weight > 0 and d["n_pieces"] == 1:
@@ -212,14 +201,6 @@ class ModelBasedAgent(Agent):
             "t_s": t_s, "m_peak": m_peak, "visco_valid": visco_ok, "friction_valid": fric_ok,
             "limited": limited}
         return self.last_plan
-
-    def _mix_squeeze_cap(self, piece_size: float, eps_safe: float) -> float:
-        """The squeeze per face [m] at which one piece of the mix's mean size, taking all of
-        it, reaches ``mix_strain_share`` times the safe strain (inf: not a mix, or off)."""
-        share = self.config.mix_strain_share
-        if share is None or self.layout not in MIX_LAYOUTS:
-            return math.inf
-        return share * eps_safe * piece_size / 2.0
 
     def _stall_squeeze(self, theta: float, L: float, k1: float, k2: float,
                        tau1: float) -> float:
