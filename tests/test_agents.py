@@ -112,6 +112,23 @@ def test_model_based_grip_rule_and_strain_cap() -> None:
     assert b == pytest.approx(2 * a, rel=1e-3)
 
 
+def test_model_based_diced_squeeze_is_the_layout_setting_and_never_slowed() -> None:
+    """On a diced plate the squeeze is eps_diced of the span and the clamp keeps its fast
+    speed, where the grip rule on the same observation (a probed piece that relaxes a lot)
+    squeezes 15 % and slows the clamp for the probed piece's predicted stall."""
+    stiff = _obs(K1=2.0e4, K2=1.0e6, B=3.0e6, mu=0.15, total_mass=0.02, n_pieces=6.0,
+                 span_along=0.03, mean_size=0.01, max_height=0.01)
+    grip = ModelBasedAgent(ModelBasedConfig(layout="block", time_weight=0.5)).plan(stiff)
+    assert grip["omega"] < 0.4 and grip["eps"] != pytest.approx(0.10)
+    agent = ModelBasedAgent(ModelBasedConfig(time_weight=0.5))
+    agent.begin_episode(gym.make("FoodFetch-Diced-v1"))
+    assert agent.layout == "diced"
+    p = agent.plan(stiff)
+    assert p["eps"] == pytest.approx(agent.config.eps_diced) == pytest.approx(0.10)
+    assert p["omega"] == pytest.approx(0.4) and p["lift_speed"] == pytest.approx(0.04)
+    assert p["theta_d"] == pytest.approx((agent.geometry.gap + 0.10 * 0.03 / 2) / p["L"])
+
+
 def test_model_based_two_rows_squeeze_is_the_layout_setting() -> None:
     """On a two-row plate the squeeze is eps_min_two_rows of the span whatever the grip rule
     asks (the same soft, slippery, heavy plate asks for more than the safe strain elsewhere);
