@@ -32,10 +32,6 @@ def _headroom_module():
 # and docs/agents.md say so too); a change either way fails the test below, so that it is
 # noticed and the text updated.
 KNOWN_SHORTFALLS: dict[str, set[str]] = {
-    # model-based's mean is the highest of the three (-0.038 against -0.196 and -0.245), but
-    # its grip rule, sized on the probed piece and the whole mix's mass, crushes soft dice on
-    # many scenes: its interval reaches into random's and study's
-    "FoodFetch-Diced-v1": {"model_based_above_random", "model_based_above_study"},
     # model-based beats study on most scenes (paired +0.24 [0.11, 0.37] on the 189 scenes
     # its episode log kept), but a fifth of the scenes are 0.0123 MPa plates where every
     # action is a lottery, so both agents' own intervals are wide and overlap
