@@ -100,9 +100,6 @@ class ModelBasedConfig:
     lift_speed_fast: float = 0.04  # [m/s] lift speed when time costs (the action's fastest)
     eps_min_two_rows: float = 0.07  # nominal squeeze of a two-row plate's span
     eps_diced: float = 0.10  # nominal squeeze of a diced plate's span
-    # [N/m] a two-row plate whose probed K1 + K2 is below this is not clamped (theta_d at
-    # the action's least); 0 never declines
-    two_rows_decline_stiffness: float = 0.0
     layout: str | None = None  # the scene family; None: the env's, read at begin_episode
 
 
@@ -195,9 +192,6 @@ class ModelBasedAgent(Agent):
         theta = clamp_angle(geo, height, dx)
         lo, hi = ACTION_RANGES["theta_d"]
         theta = float(np.clip(theta, lo, hi))
-        if self.layout == "two_rows" and k1 + k2 < c.two_rows_decline_stiffness:
-            theta, dx, eps = lo, L * lo - geo.gap, 0.0
-            limited = "declined: a very soft two-row plate, where every squeeze is a lottery"
 
         # Clamp speed: keep the instantaneous moment L dx (K1 + K2 phi) below the stall.
         omega = c.omega_fast if self.time_weight > 0 else c.omega

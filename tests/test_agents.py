@@ -24,7 +24,7 @@ from agents.evaluate import (
 )
 from agents.model_based import ModelBasedAgent, ModelBasedConfig
 from agents.search import SearchAgent
-from fetch_env.env import ACTION_RANGES, OBS_NAMES, action_to_physical
+from fetch_env.env import OBS_NAMES, action_to_physical
 from fetch_env.spaces import encode_observation
 
 
@@ -127,26 +127,6 @@ def test_model_based_diced_squeeze_is_the_layout_setting_and_never_slowed() -> N
     assert p["eps"] == pytest.approx(agent.config.eps_diced) == pytest.approx(0.10)
     assert p["omega"] == pytest.approx(0.4) and p["lift_speed"] == pytest.approx(0.04)
     assert p["theta_d"] == pytest.approx((agent.geometry.gap + 0.10 * 0.03 / 2) / p["L"])
-
-
-def test_model_based_declines_a_very_soft_two_row_plate_when_set() -> None:
-    """With two_rows_decline_stiffness set, a two-row plate whose probed K1 + K2 is below it
-    gets the action's least angle (the blades stop short of the 1 mm gap: nothing touched),
-    a stiffer one the usual squeeze; off by default."""
-    soft = _obs(K1=60.0, K2=200.0, B=600.0, n_pieces=6.0, span_along=0.022, mean_size=0.01,
-                max_height=0.01, total_mass=0.006)
-    firm = _obs(K1=1500.0, K2=1500.0, B=4500.0, n_pieces=6.0, span_along=0.022,
-                mean_size=0.01, max_height=0.01, total_mass=0.006)
-    env = gym.make("FoodFetch-TwoRows-v1")
-    agent = ModelBasedAgent(ModelBasedConfig(two_rows_decline_stiffness=1200.0))
-    agent.begin_episode(env)
-    p = agent.plan(soft)
-    assert p["theta_d"] == pytest.approx(ACTION_RANGES["theta_d"][0])
-    assert p["dx"] < 0 and p["eps"] == 0.0 and p["limited"].startswith("declined")
-    assert agent.plan(firm)["eps"] == pytest.approx(agent.config.eps_min_two_rows)
-    default = ModelBasedAgent()
-    default.begin_episode(env)
-    assert default.plan(soft)["eps"] == pytest.approx(default.config.eps_min_two_rows)
 
 
 def test_model_based_two_rows_squeeze_is_the_layout_setting() -> None:
