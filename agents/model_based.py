@@ -48,8 +48,8 @@ The model (SI units throughout; numbers in :class:`ModelBasedConfig`):
   whose mean reward is within the paired 95 % interval of the best one's, on a grid of
   squeezes at the fast speeds over the 200 tuning scenes (seeds 100-299) of
   FoodFetch-Diced-v1 (``benchmarks/squeeze_grid.py``, docs/agents.md): 10 % of the span
-  scored as the grip rule on average with half the spread of its rewards, where 15-18 %
-  scored a little higher on average with three to four times as many badly crushed plates.
+  scored as the grip rule on average with half the spread of its rewards, where 15 and 18 %
+  scored a little higher on average with 17 and 27 badly crushed plates against its 6.
   For the same reason the clamp on a diced plate (``MIXED_LAYOUTS``) is not slowed for the
   probed piece's predicted moment: on those tuning scenes the slowed clamp scored lower on
   every one of the 18 plates where it applied.
