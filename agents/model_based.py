@@ -202,10 +202,10 @@ class ModelBasedAgent(Agent):
         hopeless = self.time_weight > 0 and L * dx * k1 > stall
         # On a mix the probed piece's stiffness does not predict the moment of the pieces
         # between the blades (see the module docstring), so the clamp is not slowed for it.
-        hopeless = hopeless or (self.layout or "") in MIXED_LAYOUTS
+        keep_speed = hopeless or self.layout in MIXED_LAYOUTS
         for _ in range(8):
             m_peak = L * dx * (k1 + k2 * _maxwell_share(theta / omega, tau1))
-            if m_peak <= stall or omega <= c.omega_min or hopeless:
+            if m_peak <= stall or omega <= c.omega_min or keep_speed:
                 break
             omega = max(omega / 2.0, c.omega_min)
         olo, ohi = ACTION_RANGES["omega"]
