@@ -25,6 +25,7 @@ import json
 import sys
 import warnings
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any
 
@@ -159,13 +160,18 @@ def main(argv: list[str] | None = None) -> int:
             done[row["seed"]] = row
     todo = [s for s in args.seeds if s not in done]
     out.parent.mkdir(parents=True, exist_ok=True)
-    with stream.open("a") as f, ProcessPoolExecutor(args.workers) as pool:
-        jobs = [pool.submit(scene_row, args.env, s, args.squeezes, args.speeds) for s in todo]
-        for job in jobs:
-            row = job.result()
-            done[row["seed"]] = row
-            f.write(json.dumps(row) + "\n")
-            f.flush()
+    try:
+        with stream.open("a") as f, ProcessPoolExecutor(args.workers) as pool:
+            jobs = [pool.submit(scene_row, args.env, s, args.squeezes, args.speeds) for s in todo]
+            for job in jobs:
+                row = job.result()
+                done[row["seed"]] = row
+                f.write(json.dumps(row) + "\n")
+                f.flush()
+    except BrokenProcessPool:
+        print(f"a worker process died; the {len(done)} finished scenes are in {stream}; rerun "
+              "the same command to continue", file=sys.stderr)
+        return 1
     rows = [done[s] for s in args.seeds]
     summary = summarize(rows)
     fast = max(o for o, _ in args.speeds)
