@@ -1,14 +1,17 @@
 """Reward of every squeeze on a grid, scene by scene, on an id's tuning scenes.
 
 Run: python benchmarks/squeeze_grid.py --env FoodFetch-Diced-v1 [--seeds 100:300] \\
-         [--squeezes 0,0.02,...] [--speeds 0.4:0.04,0.2:0.02] [--workers 2] [--out JSON]
+         [--squeezes 0,0.02,...] [--speeds 0.4:0.04,0.2:0.02] [--max-young MPA] \\
+         [--workers 2] [--out JSON]
 
 On each scene ``reset(seed=s)`` of the tuning seeds (default 100-299, never the reporting
 seeds from 80000) every nominal squeeze of the span (``eps``: each face presses
 ``eps * span_along / 2`` into the plate, the model-based agent's ``clamp_angle``) is fetched
 at every (clamp speed, lift speed) pair with ``env.unwrapped.simulate_action``, and so is
 the shipped model-based agent's own action.  The physics is deterministic, so a scene's row
-is the reward any policy that picks one of these actions would get there.  Writes the
+is the reward any policy that picks one of these actions would get there.  ``--max-young``
+keeps only the scenes whose stiffest piece is at most that modulus (drawn as the env's reset
+draws them, without simulating), to study one stiffness level of a plate family.  Writes the
 scenes as they finish to ``JSON.jsonl`` (a stopped run keeps them; a rerun skips them), then
 ``JSON``: the scenes and, per action, the mean reward with its 95 % interval, the spread,
 the paired difference to the best squeeze at each speed, and the plates with a reward below
@@ -35,6 +38,7 @@ import numpy as np
 import fetch_env  # noqa: F401  (registers the ids)
 from agents.model_based import ModelBasedAgent, ModelBasedConfig, clamp_angle
 from fetch_env.env import ACTION_RANGES, decode_observation, physical_to_action
+from fetch_env.env_scenes import sample_scene
 from fetch_env.scene import Geometry
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -75,6 +79,15 @@ def scene_row(env_id: str, seed: int, squeezes: tuple[float, ...],
                         "omega": agent.last_plan["omega"]}
     env.close()
     return {"seed": seed, "obs": d, "grid": grid, **agents}
+
+
+def stiffest_young(env_id: str, seed: int) -> float:
+    """[Pa] the stiffest piece of the scene ``reset(seed=seed)`` draws, without simulating:
+    the env's reset draws its scene first from the seeded generator."""
+    env = gym.make(env_id).unwrapped
+    pieces = sample_scene(env.layout, gym.utils.seeding.np_random(seed)[0], env.scenes)
+    env.close()
+    return max(p.material.young for p in pieces)
 
 
 def _ci(x: np.ndarray) -> list[float]:
@@ -144,6 +157,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", type=seed_range, default=range(100, 300), help="LO:HI")
     p.add_argument("--squeezes", type=_floats, default=SQUEEZES)
     p.add_argument("--speeds", type=_speeds, default=SPEEDS, help="OMEGA:LIFT,...")
+    p.add_argument("--max-young", type=float, default=None, metavar="MPA",
+                   help="only the scenes whose stiffest piece is at most this modulus")
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--out", type=Path, default=None)
     args = p.parse_args(argv)
@@ -151,6 +166,14 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"unknown env id {args.env!r}")
     if args.workers < 1:
         p.error(f"--workers must be >= 1, got {args.workers}")
+    if args.max_young is not None and not args.max_young > 0:
+        p.error(f"--max-young must be > 0 MPa, got {args.max_young}")
+    seeds = list(args.seeds)
+    if args.max_young is not None:
+        seeds = [s for s in seeds if stiffest_young(args.env, s) <= args.max_young * 1e6]
+        if not seeds:
+            p.error(f"no scene of seeds {args.seeds.start}-{args.seeds.stop - 1} has its "
+                    f"stiffest piece at most {args.max_young} MPa")
     out = args.out or ROOT / "docs" / "data" / "tuning" / f"{args.env}_squeeze_grid.json"
     stream = out.with_suffix(".jsonl")
     done = {}
@@ -158,7 +181,7 @@ def main(argv: list[str] | None = None) -> int:
         for line in stream.read_text().splitlines():
             row = json.loads(line)
             done[row["seed"]] = row
-    todo = [s for s in args.seeds if s not in done]
+    todo = [s for s in seeds if s not in done]
     out.parent.mkdir(parents=True, exist_ok=True)
     try:
         with stream.open("a") as f, ProcessPoolExecutor(args.workers) as pool:
@@ -172,13 +195,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"a worker process died; the {len(done)} finished scenes are in {stream}; rerun "
               "the same command to continue", file=sys.stderr)
         return 1
-    rows = [done[s] for s in args.seeds]
+    rows = [done[s] for s in seeds]
     summary = summarize(rows)
     fast = max(o for o, _ in args.speeds)
     summary["least_squeeze_near_best"] = {"omega": fast,
                                           "eps": least_squeeze_near_best(summary, fast)}
     write_json(out, {"env_id": args.env, "seeds": f"{args.seeds.start}-{args.seeds.stop - 1}",
-                     "meta": meta(), "summary": summary, "scenes": rows})
+                     "max_young_mpa": args.max_young, "meta": meta(), "summary": summary,
+                     "scenes": rows})
     mb, grip = summary["model_based"], summary["grip_rule"]
     eps = summary["least_squeeze_near_best"]["eps"]
     print(f"{args.env}, {len(rows)} scenes: model-based {mb['reward_mean']:+.3f}, grip rule "
