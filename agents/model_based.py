@@ -42,8 +42,8 @@ The model (SI units throughout; numbers in :class:`ModelBasedConfig`):
   docs/agents.md; on FoodFetch-TwoRows-v0 it scores 1.000 on the ten scenes from seed 70000,
   as the grip rule did).  A very soft two-row plate (the probed piece's instantaneous
   modulus ``(K1 + K2) / (2 size)`` below ``two_rows_soft_modulus``, 0.043 MPa: the geometric
-  mean of the study's two softest levels, 0.0123 and 0.15 MPa, which the probe's estimates
-  on the 200 tuning scenes put on either side of it with a factor of 3.9 to spare) is only
+  mean of the study's two softest levels, 0.0123 and 0.15 MPa; on the 200 tuning scenes the
+  probe put the softest level's plates at 11-33 kPa and the next level's from 131 kPa) is only
   touched: ``eps_two_rows_soft`` (4 %) of the span, which closes less than the 1 mm gap
   between the rows, so nothing is lifted and nothing is crushed.  On the 53 such tuning
   scenes (seeds 100-299, ``benchmarks/squeeze_grid.py --max-young 0.02``) every squeeze from
