@@ -36,6 +36,7 @@ import gymnasium as gym
 import numpy as np
 
 import fetch_env  # noqa: F401  (registers the ids)
+from agents.evaluate import mean_ci
 from agents.model_based import ModelBasedAgent, ModelBasedConfig, clamp_angle
 from fetch_env.env import ACTION_RANGES, decode_observation, physical_to_action
 from fetch_env.env_scenes import sample_scene
@@ -91,8 +92,9 @@ def stiffest_young(env_id: str, seed: int) -> float:
 
 
 def _ci(x: np.ndarray) -> list[float]:
-    half = 1.96 * float(x.std(ddof=1)) / np.sqrt(x.size) if x.size > 1 else float("nan")
-    return [float(x.mean()) - half, float(x.mean()) + half]
+    """The Student-t 95 % interval of the mean, as ``food-fetch evaluate`` reports it."""
+    _, lo, hi = mean_ci(x)
+    return [lo, hi]
 
 
 def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
