@@ -40,17 +40,7 @@ The model (SI units throughout; numbers in :class:`ModelBasedConfig`):
   the squeeze of one piece) and the squeeze is ``eps_min_two_rows`` of the span
   (``FIXED_SQUEEZE_LAYOUTS``; chosen on tuning seeds 100-139 of FoodFetch-TwoRows-v1,
   docs/agents.md; on FoodFetch-TwoRows-v0 it scores 1.000 on the ten scenes from seed 70000,
-  as the grip rule did).  A very soft two-row plate (the probed piece's instantaneous
-  modulus ``(K1 + K2) / (2 size)`` below ``two_rows_soft_modulus``, 0.043 MPa: the geometric
-  mean of the study's two softest levels, 0.0123 and 0.15 MPa; on the 200 tuning scenes the
-  probe put the softest level's plates at 11-33 kPa and the next level's from 131 kPa) is only
-  touched: ``eps_two_rows_soft`` (4 %) of the span, which closes less than the 1 mm gap
-  between the rows, so nothing is lifted and nothing is crushed.  On the 53 such tuning
-  scenes (seeds 100-299, ``benchmarks/squeeze_grid.py --max-young 0.02``) every squeeze from
-  4 to 30 % of the span scored below zero on average (cubes this soft and this close are
-  flung apart and crushed in the clamp, the env's known lottery) and the least, 4 %, scored
-  best.  When the viscoelastic estimate is invalid the plate keeps the usual squeeze.
-  A diced plate (``layout="diced"``) mixes shapes and the study's
+  as the grip rule did).  A diced plate (``layout="diced"``) mixes shapes and the study's
   five stiffnesses, and only its centre piece is probed, so the grip rule sizes the squeeze
   for a piece that says little about the softest die beside it; there the squeeze is
   ``eps_diced`` of the span.  On a diced mix the outcome of one squeeze is close to a lottery
@@ -110,10 +100,6 @@ class ModelBasedConfig:
     lift_speed_fast: float = 0.04  # [m/s] lift speed when time costs (the action's fastest)
     eps_min_two_rows: float = 0.07  # nominal squeeze of a two-row plate's span
     eps_diced: float = 0.10  # nominal squeeze of a diced plate's span
-    # [Pa] a two-row plate whose probed instantaneous modulus (K1 + K2) / (2 size) is below
-    # this is squeezed by ``eps_two_rows_soft`` only (0: never)
-    two_rows_soft_modulus: float = 0.043e6
-    eps_two_rows_soft: float = 0.04  # nominal squeeze of a very soft two-row plate's span
     layout: str | None = None  # the scene family; None: the env's, read at begin_episode
 
 
@@ -188,9 +174,6 @@ class ModelBasedAgent(Agent):
         eps_cap = 1.0 - math.exp(-(c.safe_log_strain + c.overshoot))
         fixed_field = FIXED_SQUEEZE_LAYOUTS.get(self.layout or "")
         limited = ""
-        if fixed_field == "eps_min_two_rows" and visco_ok and self._very_soft(k1 + k2, d):
-            fixed_field = "eps_two_rows_soft"
-            limited = "a very soft two-row plate: squeezed too little to lift, so it is spared"
         if fixed_field is not None:
             eps = min(float(getattr(c, fixed_field)), eps_safe)
         else:
@@ -237,12 +220,6 @@ class ModelBasedAgent(Agent):
             "t_s": t_s, "m_peak": m_peak, "visco_valid": visco_ok, "friction_valid": fric_ok,
             "limited": limited}
         return self.last_plan
-
-    def _very_soft(self, k_inst: float, d: dict[str, Any]) -> bool:
-        """Whether the probed piece's instantaneous modulus, ``K = 2 E a`` for a cube of side
-        ``a`` (``fetch_env.probes.nominal_stiffness``), is below ``two_rows_soft_modulus``."""
-        size = float(d["mean_size"])
-        return size > 0 and k_inst / (2.0 * size) < self.config.two_rows_soft_modulus
 
     def _stall_squeeze(self, theta: float, L: float, k1: float, k2: float,
                        tau1: float) -> float:

@@ -151,31 +151,6 @@ def test_model_based_two_rows_squeeze_is_the_layout_setting() -> None:
     assert fixed.layout == "block"
 
 
-@pytest.mark.parametrize(("k_inst", "valid", "spared"), [
-    (800.0, 1.0, True),  # (K1 + K2) / (2 a) = 40 kPa: below 0.043 MPa
-    (900.0, 1.0, False),  # 45 kPa: above
-    (800.0, 0.0, False),  # an invalid estimate says nothing of the plate's stiffness
-])
-def test_model_based_very_soft_two_row_plate_is_only_touched(k_inst: float, valid: float,
-                                                            spared: bool) -> None:
-    """A two-row plate whose probed instantaneous modulus is below two_rows_soft_modulus is
-    squeezed by eps_two_rows_soft (4 %) of its span; otherwise by eps_min_two_rows."""
-    obs = _obs(K1=0.6 * k_inst, K2=0.4 * k_inst, B=k_inst, mu=0.3, total_mass=0.004,
-               n_pieces=4.0, span_along=0.021, mean_size=0.01, max_height=0.01,
-               visco_valid=valid)
-    agent = ModelBasedAgent(ModelBasedConfig(layout="two_rows", time_weight=0.1))
-    p = agent.plan(obs)
-    c = agent.config
-    assert c.two_rows_soft_modulus == pytest.approx(0.043e6)
-    eps = c.eps_two_rows_soft if spared else c.eps_min_two_rows
-    assert p["eps"] == pytest.approx(eps)
-    assert p["theta_d"] == pytest.approx((agent.geometry.gap + eps * 0.021 / 2) / p["L"])
-    assert bool(p["limited"]) is spared
-    assert p["omega"] == pytest.approx(0.4)
-    never = ModelBasedAgent(ModelBasedConfig(layout="two_rows", two_rows_soft_modulus=0.0))
-    assert never.plan(obs)["eps"] == pytest.approx(c.eps_min_two_rows)
-
-
 def test_size_only_squeezes_a_share_of_the_width_at_the_fastest_speeds() -> None:
     agent = SizeOnlyAgent()
     geo = agent.geometry
