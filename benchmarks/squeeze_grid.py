@@ -10,8 +10,8 @@ seeds from 80000) every nominal squeeze of the span (``eps``: each face presses
 at every (clamp speed, lift speed) pair with ``env.unwrapped.simulate_action``, and so is
 the shipped model-based agent's own action.  The physics is deterministic, so a scene's row
 is the reward any policy that picks one of these actions would get there.  ``--max-young``
-keeps only the scenes whose stiffest piece is at most that modulus (drawn as the env's reset
-draws them, without simulating), to study one stiffness level of a plate family.  Writes the
+keeps only the scenes whose stiffest piece is at most that modulus (the scene reset builds,
+without the probes), to study one stiffness level of a plate family.  Writes the
 scenes as they finish to ``JSON.jsonl`` (a stopped run keeps them; a rerun skips them), then
 ``JSON``: the scenes and, per action, the mean reward with its 95 % interval, the spread,
 the paired difference to the best squeeze at each speed, and the plates with a reward below
@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 import warnings
 from concurrent.futures import ProcessPoolExecutor
@@ -36,17 +37,18 @@ import gymnasium as gym
 import numpy as np
 
 import fetch_env  # noqa: F401  (registers the ids)
-from agents.evaluate import mean_ci
+from agents.evaluate import _close_pool, mean_ci
 from agents.model_based import ModelBasedAgent, ModelBasedConfig, clamp_angle
 from fetch_env.env import ACTION_RANGES, decode_observation, physical_to_action
-from fetch_env.env_scenes import sample_scene
 from fetch_env.scene import Geometry
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.headroom import _raise_interrupt  # noqa: E402
 from benchmarks.readme_meta import meta, write_json  # noqa: E402
 from benchmarks.theta_sweep import seed_range  # noqa: E402
+from benchmarks.validate_estimators import _worker_signals  # noqa: E402
 
 SQUEEZES = (0.0, 0.02, 0.04, 0.06, 0.08, 0.10, 0.12, 0.15, 0.18, 0.22, 0.27)
 SPEEDS = ((0.4, 0.04), (0.2, 0.02))  # (omega [rad/s], lift_speed [m/s])
@@ -83,12 +85,13 @@ def scene_row(env_id: str, seed: int, squeezes: tuple[float, ...],
 
 
 def stiffest_young(env_id: str, seed: int) -> float:
-    """[Pa] the stiffest piece of the scene ``reset(seed=seed)`` draws, without simulating:
-    the env's reset draws its scene first from the seeded generator."""
-    env = gym.make(env_id).unwrapped
-    pieces = sample_scene(env.layout, gym.utils.seeding.np_random(seed)[0], env.scenes)
+    """[Pa] the stiffest piece of the scene ``reset(seed=seed)`` builds, without the probes
+    (``estimator="none"``) or a fetch."""
+    env = gym.make(env_id, estimator="none")
+    env.reset(seed=seed)
+    young = max(p.material.young for p in env.unwrapped.pieces)
     env.close()
-    return max(p.material.young for p in pieces)
+    return young
 
 
 def _ci(x: np.ndarray) -> list[float]:
@@ -153,6 +156,25 @@ def _speeds(text: str) -> tuple[tuple[float, float], ...]:
     return pairs  # type: ignore[return-value]
 
 
+def _run_scenes(args: argparse.Namespace, todo: list[int], stream: Path,
+                done: dict[int, dict[str, Any]]) -> None:
+    """Run the ``todo`` scenes on ``args.workers`` processes, appending each to ``stream``
+    (and ``done``) as it finishes; after a stop or a lost worker the workers end too."""
+    pool = ProcessPoolExecutor(args.workers, initializer=_worker_signals)
+    clean = False
+    try:
+        with stream.open("a") as f:
+            jobs = [pool.submit(scene_row, args.env, s, args.squeezes, args.speeds) for s in todo]
+            for job in jobs:
+                row = job.result()
+                done[row["seed"]] = row
+                f.write(json.dumps(row) + "\n")
+                f.flush()
+        clean = True
+    finally:
+        _close_pool(pool, clean)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--env", required=True)
@@ -178,25 +200,22 @@ def main(argv: list[str] | None = None) -> int:
                     f"stiffest piece at most {args.max_young} MPa")
     out = args.out or ROOT / "docs" / "data" / "tuning" / f"{args.env}_squeeze_grid.json"
     stream = out.with_suffix(".jsonl")
-    done = {}
+    done: dict[int, dict[str, Any]] = {}
     if stream.exists():
         for line in stream.read_text().splitlines():
             row = json.loads(line)
             done[row["seed"]] = row
     todo = [s for s in seeds if s not in done]
     out.parent.mkdir(parents=True, exist_ok=True)
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, _raise_interrupt)
     try:
-        with stream.open("a") as f, ProcessPoolExecutor(args.workers) as pool:
-            jobs = [pool.submit(scene_row, args.env, s, args.squeezes, args.speeds) for s in todo]
-            for job in jobs:
-                row = job.result()
-                done[row["seed"]] = row
-                f.write(json.dumps(row) + "\n")
-                f.flush()
-    except BrokenProcessPool:
-        print(f"a worker process died; the {len(done)} finished scenes are in {stream}; rerun "
-              "the same command to continue", file=sys.stderr)
-        return 1
+        _run_scenes(args, todo, stream, done)
+    except (KeyboardInterrupt, BrokenProcessPool) as exc:
+        why = "stopped" if isinstance(exc, KeyboardInterrupt) else "a worker process died"
+        print(f"{why}; the {len(done)} finished scenes are in {stream}; rerun the same "
+              "command to continue", file=sys.stderr)
+        return 130 if isinstance(exc, KeyboardInterrupt) else 1
     rows = [done[s] for s in seeds]
     summary = summarize(rows)
     fast = max(o for o, _ in args.speeds)

@@ -37,7 +37,7 @@ import gymnasium as gym
 
 import fetch_env  # noqa: F401  (registers the ids)
 from fetch_env.env import physical_to_action
-from fetch_env.env_scenes import TWO_ROWS_SPACING_ALONG, sample_scene
+from fetch_env.env_scenes import TWO_ROWS_SPACING_ALONG
 from fetch_env.layouts import Piece, grid, single_block, two_rows
 from fetch_env.materials import PRESETS
 
@@ -106,7 +106,8 @@ def spaced_tuning_plates(seeds: range = range(100, 140), across: float = 1e-3
     env = gym.make(ENV_ID, estimator="none")
     out = []
     for seed in seeds:
-        pieces = sample_scene("two_rows", gym.utils.seeding.np_random(seed)[0], "wide")
+        env.reset(seed=seed)
+        pieces = env.unwrapped.pieces
         if pieces[0].material.young > SOFT.young:
             continue
         spaced = two_rows(material=pieces[0].material, n=len(pieces) // 2,

@@ -133,8 +133,8 @@ def test_model_based_two_rows_squeeze_is_the_layout_setting() -> None:
     """On a two-row plate the squeeze is eps_min_two_rows of the span whatever the grip rule
     asks (the same soft, slippery, heavy plate asks for more than the safe strain elsewhere);
     the layout comes from the env at begin_episode unless the config fixes it."""
-    soft = _obs(K1=1500.0, K2=1000.0, B=3000.0, mu=0.15, total_mass=0.04, n_pieces=4.0,
-                span_along=0.021, mean_size=0.01, max_height=0.01)  # E = 0.125 MPa
+    soft = _obs(K1=150.0, K2=100.0, B=300.0, mu=0.15, total_mass=0.008, n_pieces=4.0,
+                span_along=0.021, mean_size=0.01, max_height=0.01)
     free = ModelBasedAgent(ModelBasedConfig(layout="row")).plan(soft)
     assert free["limited"] and free["eps"] > 0.2
     agent = ModelBasedAgent()

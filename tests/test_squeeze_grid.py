@@ -61,11 +61,11 @@ def test_the_shipped_diced_squeeze_is_the_committed_grids_choice() -> None:
         assert row["model_based"]["theta_d"] == pytest.approx(cell["theta_d"], abs=1e-9)
 
 
-
 @pytest.mark.parametrize("seed", [100, 102, 103])
 def test_max_young_filter_sees_the_scene_reset_draws(seed: int) -> None:
-    """--max-young picks scenes without simulating: the stiffest piece it reads is the one
-    reset(seed) builds (0.0123 MPa, 200 MPa and 40 MPa plates on these seeds)."""
+    """--max-young picks scenes without running the probes: the stiffest piece it reads is
+    the one the probing env's reset(seed) builds (0.0123 MPa, 200 MPa and 40 MPa plates on
+    these seeds)."""
     import warnings
 
     import gymnasium as gym
