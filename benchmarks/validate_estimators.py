@@ -343,7 +343,7 @@ def error_rows(records: list[dict[str, Any]], calibration: Calibration
         own = r.get("uncalibrated") or r["estimate"]
         f = r["food"]
         try:
-            fixed, _ = calibration.apply(f["shape"], f["size"], own)
+            fixed, _ = calibration.apply(f["shape"], f["size"], own, r["diagnostics"])
         except EstimationError:
             continue
         resid = {k: math.log(fixed[k] / r["truth"][k]) if fixed[k] > 0 else math.nan
@@ -365,11 +365,12 @@ def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]
     def use(r: dict[str, Any]) -> bool:
         return "crash" not in r and (keep is None or r["food"]["index"] in keep)
 
-    cal = fit_calibration(_uncalibrated_foods([r for r in cal_records if use(r)]),
-                          source=source)
+    used = [r for r in cal_records if use(r)]
+    cal = fit_calibration(_uncalibrated_foods(used), source=source,
+                          diagnostics=[r.get("diagnostics") or {} for r in used])
     rows = [row for run in runs for i, row in error_rows([r for r in run if use(r)], cal)]
     em = fit_error_model(rows, source=source)
-    return Calibration(cal.coefficients, cal.n_foods, cal.source, em)
+    return Calibration(cal.coefficients, cal.n_foods, cal.source, em, cal.feature_names)
 
 
 def cross_validate(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],

@@ -44,27 +44,57 @@ from scipy.optimize import least_squares, minimize
 
 from estimators.errors import EstimationError, instance, mapping
 
-__all__ = ["ERROR_INPUTS", "FEATURES", "TARGETS", "Calibration", "ErrorModel", "error_inputs",
-           "features", "fit_calibration", "fit_error_model"]
+__all__ = ["DRIFT_FEATURES", "ERROR_INPUTS", "FEATURES", "TARGETS", "Calibration", "ErrorModel",
+           "error_inputs", "features", "fit_calibration", "fit_error_model"]
 
 FEATURES: tuple[str, ...] = ("1", "cube", "sphere", "log_size", "log_stiffness", "mu", "g1",
                              "log_tau1")
+# Trace diagnostics a calibration may add to FEATURES: how far a linear drift fitted with the
+# hold's exponential moves g1 and tau1 (estimators.uncertainty.drift_diagnostics), a per-trace
+# measure of the contact's creep.  Only tau1's correction uses them (DRIFT_TARGETS): on the
+# validation harness's 256 tuning foods ("measure" probes, 8-fold cross-validated) they took
+# tau1's median |error| after calibration from 2.9 to 2.1 % and its 95th percentile from
+# 18.8 to 16.3 %, while g1's median went from 1.22 to 1.32 % with them, so g1 and K_el
+# leave them out.
+DRIFT_FEATURES: tuple[str, ...] = ("drift_log_g1", "drift_log_tau1")
+DRIFT_TARGETS: tuple[str, ...] = ("tau1",)
 TARGETS: tuple[str, ...] = ("K_el", "g1", "tau1")
 SHAPES = ("cube", "ellipsoid", "sphere")
 _SIZE_REF = 0.015  # [m]
 _STIFFNESS_REF = 1e6  # [N/m per m of size]
 
 
-def features(shape: str, size: float, estimate: Mapping[str, float]) -> np.ndarray:
-    """The feature vector ``x`` of one probed food (see :data:`FEATURES`).
+def features(shape: str, size: float, estimate: Mapping[str, float],
+             diagnostics: Mapping[str, float] | None = None,
+             names: Sequence[str] = FEATURES) -> np.ndarray:
+    """The feature vector ``x`` of one probed food (:data:`FEATURES`, then any of
+    :data:`DRIFT_FEATURES` in ``names``).
 
     Args:
         shape: "cube", "ellipsoid" or "sphere". size: nominal size [m].
         estimate: the probe's K1, K2 [N/m], mu, g1, tau1 [s].
+        diagnostics: the trace's diagnostics, where ``names`` has drift features.
+        names: :data:`FEATURES`, or :data:`FEATURES` + :data:`DRIFT_FEATURES`.
 
     Raises:
-        EstimationError: an unknown shape, a size or estimate that is not finite and positive.
+        EstimationError: an unknown shape, a size or estimate that is not finite and positive,
+            a drift feature missing from ``diagnostics`` or not finite.
     """
+    base = _food_features(shape, size, estimate)
+    extra = [n for n in names if n not in FEATURES]
+    if tuple(names) not in (FEATURES, FEATURES + DRIFT_FEATURES):
+        raise EstimationError(f"calibration features must be {FEATURES} or that plus "
+                              f"{DRIFT_FEATURES}, got {tuple(names)!r}")
+    diag = mapping("diagnostics", diagnostics) if extra and diagnostics is not None else {}
+    values = [_number(diag.get(n)) for n in extra]
+    for n, v in zip(extra, values, strict=True):
+        if not math.isfinite(v):
+            raise EstimationError(f"calibration needs the trace diagnostic {n!r}, got "
+                                  f"{diag.get(n)!r}")
+    return np.concatenate([base, values]) if extra else base
+
+
+def _food_features(shape: str, size: float, estimate: Mapping[str, float]) -> np.ndarray:
     if not isinstance(shape, str) or shape not in SHAPES:
         raise EstimationError(f"shape must be one of {SHAPES}, got {shape!r}")
     values = {k: mapping("estimate", estimate).get(k, math.nan)
@@ -119,36 +149,46 @@ class Calibration:
     """Coefficients ``b`` of ``log(estimate / truth) = b . x`` per target.
 
     Attributes:
-        coefficients: target ("K_el", "g1", "tau1") -> one coefficient per :data:`FEATURES`.
+        coefficients: target ("K_el", "g1", "tau1") -> one coefficient per feature.
         n_foods: foods it was fitted on. source: what it was fitted on (for the record).
         error_model: the size of the error left after it (:class:`ErrorModel`), if fitted.
+        feature_names: :data:`FEATURES`, or with :data:`DRIFT_FEATURES` (then
+            :meth:`apply` needs the trace's diagnostics).
     """
 
     coefficients: Mapping[str, Sequence[float]]
     n_foods: int = 0
     source: str = ""
     error_model: ErrorModel | None = None
+    feature_names: tuple[str, ...] = FEATURES
 
     def __post_init__(self) -> None:
         mapping("calibration coefficients", self.coefficients)
         instance("error_model", self.error_model, ErrorModel | None, "an ErrorModel or None")
+        names = tuple(self.feature_names) if isinstance(self.feature_names, Sequence) else ()
+        if names not in (FEATURES, FEATURES + DRIFT_FEATURES):
+            raise EstimationError(f"calibration features must be {FEATURES} or that plus "
+                                  f"{DRIFT_FEATURES}, got {self.feature_names!r}")
         for target in TARGETS:
             b = self.coefficients.get(target)
-            if not _finite_numbers(b, len(FEATURES)):
+            if not _finite_numbers(b, len(names)):
                 raise EstimationError(
-                    f"calibration coefficients for {target!r} must be {len(FEATURES)} finite "
-                    f"numbers (for {FEATURES}), got {b!r}")
+                    f"calibration coefficients for {target!r} must be {len(names)} finite "
+                    f"numbers (for {names}), got {b!r}")
 
-    def apply(self, shape: str, size: float, estimate: Mapping[str, float]
+    def apply(self, shape: str, size: float, estimate: Mapping[str, float],
+              diagnostics: Mapping[str, float] | None = None
               ) -> tuple[dict[str, float], list[str]]:
         """The calibrated K1, K2, B, g1, tau1 (mu and any other keys unchanged), and warnings.
 
-        A calibrated g1 that would reach 1 is held at 0.99 and said so.
+        ``diagnostics``: the trace's (:func:`estimators.uncertainty.drift_diagnostics`),
+        needed where :attr:`feature_names` has drift features.  A calibrated g1 that would
+        reach 1 is held at 0.99 and said so.
 
         Raises:
             EstimationError: as :func:`features`.
         """
-        x = features(shape, size, estimate)
+        x = features(shape, size, estimate, diagnostics, self.feature_names)
         factor = {t: math.exp(float(np.dot(self.coefficients[t], x))) for t in TARGETS}
         k_el = (estimate["K1"] + estimate["K2"]) / factor["K_el"]
         g1 = estimate["g1"] / factor["g1"]
@@ -163,7 +203,7 @@ class Calibration:
 
     def to_dict(self) -> dict[str, object]:
         out: dict[str, object] = {
-            "features": list(FEATURES),
+            "features": list(self.feature_names),
             "coefficients": {t: list(map(float, b)) for t, b in self.coefficients.items()},
             "n_foods": self.n_foods, "source": self.source}
         if self.error_model is not None:
@@ -173,20 +213,22 @@ class Calibration:
     @classmethod
     def from_dict(cls, data: Mapping[str, object]) -> Calibration:
         """Read :meth:`to_dict`'s form (refusing one made for other features)."""
-        if list(data.get("features", [])) != list(FEATURES):  # type: ignore[call-overload]
+        names = tuple(data.get("features", ()))  # type: ignore[call-overload]
+        if names not in (FEATURES, FEATURES + DRIFT_FEATURES):
             raise EstimationError(f"calibration features {data.get('features')!r} are not "
-                                  f"{list(FEATURES)}")
+                                  f"{list(FEATURES)} (with or without {list(DRIFT_FEATURES)})")
         coef = data["coefficients"]
         if not isinstance(coef, Mapping):
             raise EstimationError(f"calibration coefficients must be a mapping, got {coef!r}")
         em = data.get("error_model")
         return cls({t: tuple(float(v) for v in coef[t]) for t in TARGETS},
                    int(data.get("n_foods", 0)), str(data.get("source", "")),  # type: ignore[arg-type]
-                   ErrorModel.from_dict(em) if isinstance(em, Mapping) else None)
+                   ErrorModel.from_dict(em) if isinstance(em, Mapping) else None, names)
 
 
 def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mapping[str, float]]],
-                    f_scale: float = 0.03, source: str = "") -> Calibration:
+                    f_scale: float = 0.03, source: str = "",
+                    diagnostics: Sequence[Mapping[str, float]] | None = None) -> Calibration:
     """Fit a :class:`Calibration` on reference foods.
 
     Args:
@@ -194,14 +236,25 @@ def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mappi
             g1, tau1 (and the estimate mu).  Foods whose estimate is incomplete are skipped.
         f_scale: where the soft L1 loss turns from quadratic to linear, in log units (0.03:
             a 3 % miss counts fully, a 30 % miss a tenth as much as least squares would).
+        diagnostics: each food's trace diagnostics, in the order of ``foods``; where given,
+            the calibration adds :data:`DRIFT_FEATURES` to tau1's correction
+            (:data:`DRIFT_TARGETS`; foods without them are skipped).
     Raises:
-        EstimationError: fewer usable foods than twice the number of features.
+        EstimationError: fewer usable foods than twice the number of features, or
+            ``diagnostics`` not one mapping per food.
     """
     _positive_real("f_scale", f_scale)
+    records = _records("foods", foods, 4)
+    if diagnostics is not None and (isinstance(diagnostics, Mapping | str | bytes) or len(
+            diagnostics) != len(records)):
+        raise EstimationError(f"diagnostics must give one mapping per food ({len(records)}), "
+                              f"got {diagnostics!r:.60}")
+    names = FEATURES if diagnostics is None else FEATURES + DRIFT_FEATURES
     rows, ys = [], {t: [] for t in TARGETS}
-    for i, (shape, size, est, true) in enumerate(_records("foods", foods, 4)):
+    for i, (shape, size, est, true) in enumerate(records):
         try:
-            x = features(shape, size, est)
+            x = features(shape, size, est, None if diagnostics is None else diagnostics[i],
+                         names)
         except EstimationError:
             continue
         truth = mapping(f"foods[{i}] truth", true)
@@ -213,17 +266,18 @@ def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mappi
         ys["K_el"].append(math.log((est["K1"] + est["K2"]) / (truth["K1"] + truth["K2"])))
         ys["g1"].append(math.log(est["g1"] / truth["g1"]))
         ys["tau1"].append(math.log(est["tau1"] / truth["tau1"]))
-    if len(rows) < 2 * len(FEATURES):
-        raise EstimationError(f"calibration needs at least {2 * len(FEATURES)} foods with "
+    if len(rows) < 2 * len(names):
+        raise EstimationError(f"calibration needs at least {2 * len(names)} foods with "
                               f"complete estimates, got {len(rows)}")
     X = np.array(rows)
     coef = {}
     for t in TARGETS:
         y = np.array(ys[t])
-        fit = least_squares(lambda b, y=y: X @ b - y, np.zeros(X.shape[1]), loss="soft_l1",
-                            f_scale=f_scale)
-        coef[t] = tuple(float(v) for v in fit.x)
-    return Calibration(coef, len(rows), source)
+        cols = len(names) if t in DRIFT_TARGETS else len(FEATURES)  # the rest stay 0
+        fit = least_squares(lambda b, y=y, c=cols: X[:, :c] @ b - y, np.zeros(cols),
+                            loss="soft_l1", f_scale=f_scale)
+        coef[t] = tuple(float(v) for v in fit.x) + (0.0,) * (len(names) - cols)
+    return Calibration(coef, len(rows), source, feature_names=names)
 
 
 # The error model's inputs per parameter: the food as probed (as for the calibration), the

@@ -38,14 +38,15 @@ from estimators.relaxation import (
 )
 from estimators.sls import ClampGeometry
 
-__all__ = ["INTERVAL_SCALE", "WINDOW_SHIFTS", "HoldWithIntervals", "hold_diagnostics",
-           "hold_with_intervals", "log_interval"]
+__all__ = ["DRIFT_DIAGNOSTICS", "INTERVAL_SCALE", "WINDOW_SHIFTS", "HoldWithIntervals",
+           "drift_diagnostics", "hold_diagnostics", "hold_with_intervals", "log_interval"]
 
 Z95 = 1.959963984540054
 INTERVAL_SCALE = 1.0
 # (share of the hold span dropped at the start, share dropped at the end)
 WINDOW_SHIFTS: tuple[tuple[float, float], ...] = ((0.15, 0.0), (0.0, 0.3))
 _NAMES = ("K1", "K2", "B", "g1", "tau1")
+DRIFT_DIAGNOSTICS = ("drift_log_g1", "drift_log_tau1")
 
 
 @dataclass
@@ -59,8 +60,8 @@ class HoldWithIntervals:
             from the window shifts.
         alternates: the estimates on the shifted windows (those that gave one).
         diagnostics: what the trace says about how well eq. 6 fits it
-            (:func:`hold_diagnostics`), the inputs of an error model
-            (:class:`estimators.calibration.ErrorModel`).
+            (:func:`hold_diagnostics`, :func:`drift_diagnostics`), the inputs of a
+            calibration and its error model (:mod:`estimators.calibration`).
     """
 
     estimate: HoldEstimate
@@ -109,7 +110,7 @@ def hold_diagnostics(est: HoldEstimate, t: np.ndarray, m: np.ndarray, t_start: f
     hf = est.fit
     sel = t > t_start
     s, y = t[sel] - t_start, m[sel]
-    resid = y - (hf.M_inf + hf.A * np.exp(-hf.lam * s))
+    resid = y - hf.model(s)
     a = max(abs(hf.A), 1e-300)
     span = float(s[-1]) if s.size else 0.0
     late = s > 0.8 * span
@@ -135,7 +136,7 @@ def _noise_sd(est: HoldEstimate, t: np.ndarray, m: np.ndarray, geometry: ClampGe
     t_start = t_d + settle
     sel = t > t_start
     s, y = t[sel] - t_start, m[sel]
-    resid = y - (hf.M_inf + hf.A * np.exp(-hf.lam * s))
+    resid = y - hf.model(s)
     rho = _lag1(resid)
     cov = np.asarray(hf.cov) * (1 + rho) / (1 - rho)
     if not np.all(np.isfinite(cov)):
@@ -172,6 +173,7 @@ def hold_with_intervals(
     settle: float = 0.0,
     scale: float = INTERVAL_SCALE,
     systematic: dict[str, float] | None = None,
+    drift: bool = False,
 ) -> HoldWithIntervals:
     """:func:`estimators.estimate_from_hold` with 95 % intervals that include model error.
 
@@ -179,7 +181,8 @@ def hold_with_intervals(
     window parts of the standard deviation (see the module docstring); ``systematic`` gives,
     by name, a validated systematic log-sd of the measurement method (a type B uncertainty:
     what a validation against known foods showed the method misses by beyond what the trace
-    itself reveals), added in quadrature.
+    itself reveals), added in quadrature; ``drift`` fits a linear drift with the exponential
+    on every window (:func:`estimators.fit_hold_relaxation`).
 
     Raises:
         EstimationError: as :func:`estimators.estimate_from_hold` on the full window.
@@ -191,14 +194,15 @@ def hold_with_intervals(
     tt, traces = check_traces(t, M=M)
     mm = traces["M"]
     args = (geometry, theta_1, theta_d, omega, t_d)
-    est = estimate_from_hold(tt, mm, *args, settle=settle)
+    est = estimate_from_hold(tt, mm, *args, settle=settle, drift=drift)
     span = float(tt[-1]) - (t_d + settle)
     alternates = []
     for head, tail in WINDOW_SHIFTS:
         keep = tt <= tt[-1] - tail * span + 1e-12
         try:
             alternates.append(estimate_from_hold(tt[keep], mm[keep], *args,
-                                                 settle=settle + head * span))
+                                                 settle=settle + head * span,
+                                                 drift=drift))
         except (EstimationError, ArithmeticError):
             continue  # a window too short to fit says nothing either way
     noise = _noise_sd(est, tt, mm, geometry, theta_1, theta_d, omega, t_d, settle)
@@ -217,4 +221,36 @@ def hold_with_intervals(
     intervals = {k: log_interval(getattr(est, k), math.hypot(
         scale * math.hypot(noise[k], model[k]), floor.get(k, 0.0))) for k in _NAMES}
     diag = hold_diagnostics(est, tt, mm, t_d + settle)
+    diag.update(drift_diagnostics(tt, mm, *args, settle=settle, fitted=est, drifted=drift))
     return HoldWithIntervals(est, intervals, noise, model, alternates, diag)
+
+
+def drift_diagnostics(t: np.ndarray, m: np.ndarray, geometry: ClampGeometry, theta_1: float,
+                      theta_d: float, omega: float, t_d: float, settle: float = 0.0,
+                      fitted: HoldEstimate | None = None, drifted: bool = False
+                      ) -> dict[str, float]:
+    """How much a linear drift fitted with the exponential moves g1 and tau1:
+    ``drift_log_g1`` and ``drift_log_tau1``, the log of the plain fit's value over the
+    drift fit's (:func:`estimators.fit_hold_relaxation`), held within +-1; 0 where either fit
+    fails.
+
+    Why: a compliant contact that creeps lengthens the held moment's decay and the drift
+    fit takes part of that back, so the two fits' disagreement says, per trace, how far the
+    plain fit was pulled; a calibration (:mod:`estimators.calibration`) learns how much of it
+    to undo.  ``fitted`` is an estimate already made on these arguments (plain, or with
+    ``drifted``, the drift fit), so that only the other fit is run.
+    """
+    args = (geometry, theta_1, theta_d, omega, t_d)
+    try:
+        plain = fitted if fitted is not None and not drifted else estimate_from_hold(
+            t, m, *args, settle=settle)
+        with_drift = fitted if fitted is not None and drifted else estimate_from_hold(
+            t, m, *args, settle=settle, drift=True)
+    except (EstimationError, ArithmeticError):
+        return dict.fromkeys(DRIFT_DIAGNOSTICS, 0.0)
+    out = {}
+    for key, name in zip(DRIFT_DIAGNOSTICS, ("g1", "tau1"), strict=True):
+        a, b = getattr(plain, name), getattr(with_drift, name)
+        ok = a > 0 and b > 0 and math.isfinite(a) and math.isfinite(b)
+        out[key] = float(np.clip(math.log(a / b), -1.0, 1.0)) if ok else 0.0
+    return out

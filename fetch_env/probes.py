@@ -638,7 +638,15 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
         out.warnings.append("not calibrated: the estimates are incomplete")
         return
     own = dict(est)
-    fixed, warns = calibration.apply(shape, size, own)
+    try:
+        fixed, warns = calibration.apply(shape, size, own, out.details.get("diagnostics", {}))
+    except EstimationError as exc:
+        out.warnings.append(f"not calibrated: {exc}")
+        if calibration.error_model is not None:  # its intervals are for calibrated values
+            for k in ERROR_INPUTS:
+                out.intervals[k] = (math.nan, math.nan)
+                out.warnings.append(f"no {k} interval: the estimates are not calibrated")
+        return
     for k in VISCO_NAMES:
         ratio = fixed[k] / est[k]
         lo, hi = out.intervals.get(k, (math.nan, math.nan))

@@ -49,7 +49,9 @@ reporting runs say how well they hold on other foods:
 * the probe calibration (`estimators.calibration`, shipped in
   `fetch_env/assets/probe_calibration.json`): a robust fit of `log(estimate / truth)` of
   K1 + K2, g1 and tau1 against what the robot knows (shape, size, the probe's own K, mu, g1,
-  tau1), which the probes then divide out: `python benchmarks/validate_estimators.py
+  tau1; for tau1 also how far a linear drift fitted with the hold's exponential moves g1 and
+  tau1, a per-trace measure of the contact's creep), which the probes then divide out:
+  `python benchmarks/validate_estimators.py
   --preset measure --fit-calibration docs/data/validation/tuning_measure_uncal_noise0.json
   docs/data/validation/tuning_measure_uncal_noise0.01.json` (256 foods each);
 * with it, the error model (`estimators.calibration.ErrorModel`): the size of the error the

@@ -9,7 +9,13 @@ import pytest
 from numpy.testing import assert_allclose
 
 from estimators import EstimationError
-from estimators.calibration import FEATURES, Calibration, features, fit_calibration
+from estimators.calibration import (
+    DRIFT_FEATURES,
+    FEATURES,
+    Calibration,
+    features,
+    fit_calibration,
+)
 from fetch_env.probes import PROBE_CALIBRATIONS
 
 TRUE_B = {
@@ -86,3 +92,29 @@ def test_a_g1_pushed_to_one_is_held_and_said() -> None:
 def test_the_shipped_measure_calibration_is_fitted_on_tuning_foods() -> None:
     cal = PROBE_CALIBRATIONS["measure"]
     assert "tuning set, seed 1000" in cal.source and cal.n_foods >= 48
+
+
+def test_drift_features_correct_tau1_only_and_are_required_once_fitted() -> None:
+    """With the trace's drift diagnostics, the fit recovers a tau1 bias that follows them
+    (and leaves g1 and K_el without them); applying it needs them, and says which is missing."""
+    foods = _foods(80, 7)
+    rng = np.random.default_rng(8)
+    diags, biased = [], []
+    for shape, size, est, truth in foods:
+        d = {"drift_log_g1": float(rng.normal(0, 0.05)),
+             "drift_log_tau1": float(rng.normal(0, 0.1))}
+        diags.append(d)
+        tau = est["tau1"] * math.exp(0.4 * d["drift_log_tau1"] - 0.3 * d["drift_log_g1"])
+        biased.append((shape, size, {**est, "tau1": tau}, truth))
+    cal = fit_calibration(biased, diagnostics=diags)
+    assert cal.feature_names == FEATURES + DRIFT_FEATURES
+    assert_allclose(cal.coefficients["tau1"][-2:], (-0.3, 0.4), atol=0.02)
+    assert cal.coefficients["g1"][-2:] == (0.0, 0.0) == cal.coefficients["K_el"][-2:]
+    assert Calibration.from_dict(cal.to_dict()) == cal
+    shape, size, est, truth = biased[0]
+    fixed, _ = cal.apply(shape, size, est, diags[0])
+    assert_allclose(fixed["tau1"], truth["tau1"], rtol=0.02)
+    with pytest.raises(EstimationError, match="drift_log_g1"):
+        cal.apply(shape, size, est)
+    with pytest.raises(EstimationError, match="one mapping per food"):
+        fit_calibration(biased, diagnostics=diags[:-1])

@@ -311,3 +311,21 @@ class TestBadInputs:
         est = estimator(t, theta, m, GEOM)
         assert not est.reliable
         assert any("shorter than tau1" in w for w in est.warnings)
+
+
+def test_hold_fit_with_drift_recovers_an_exponential_plus_a_line() -> None:
+    """A held moment that relaxes and also falls linearly (a creeping contact): the drift fit
+    recovers all four terms, the plain fit reads the line as a longer decay, and on a pure
+    exponential the drift fit finds no line."""
+    s = np.linspace(0.0, 20.0, 2001)
+    t_d = 2.0
+    m_inf, a, lam, c = 0.05, 0.03, 1.0 / 1.5, -4e-4
+    t = t_d + s
+    hf = fit_hold_relaxation(t, m_inf + a * np.exp(-lam * s) + c * s, t_d - 1e-9, drift=True)
+    assert_allclose([hf.M_inf, hf.A, hf.lam, hf.drift], [m_inf, a, lam, c], rtol=1e-6)
+    assert hf.relaxes and hf.r2 > 0.999999
+    plain = fit_hold_relaxation(t, m_inf + a * np.exp(-lam * s) + c * s, t_d - 1e-9)
+    assert plain.drift == 0.0 and 1.0 / plain.lam > 1.05 * 1.5  # the line lengthens tau
+    pure = fit_hold_relaxation(t, m_inf + a * np.exp(-lam * s), t_d - 1e-9, drift=True)
+    assert abs(pure.drift) < 1e-9 and pure.lam == pytest.approx(lam, rel=1e-8)
+    assert_allclose(pure.cov.shape, (3, 3))

@@ -9,7 +9,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from estimators import ClampGeometry, EstimationError, SLSParams, moment_trace
-from estimators.uncertainty import hold_with_intervals, log_interval
+from estimators.uncertainty import drift_diagnostics, hold_with_intervals, log_interval
 
 GEOM = ClampGeometry(L=0.0385, theta_0=0.0)
 THETA_1, THETA_D, OMEGA = 0.002, 0.02, 0.1
@@ -86,3 +86,21 @@ def test_log_interval() -> None:
     assert_allclose(log_interval(2.0, 0.1), (2.0 * math.exp(-0.196), 2.0 * math.exp(0.196)),
                     rtol=1e-3)
     assert all(math.isnan(v) for v in log_interval(-1.0, 0.1))
+
+
+
+def test_drift_diagnostics_see_a_creeping_contact_and_not_a_clean_hold() -> None:
+    """``drift_log_tau1`` (plain fit's tau1 over the drift fit's) is ~0 on an SLS hold and
+    clearly positive where the held moment also falls linearly; 0 where no fit is possible."""
+    t, m, _ = _trace(0.425, 1.5)
+    args = (GEOM, THETA_1, THETA_D, OMEGA, T_D)
+    clean = drift_diagnostics(t, m, *args, settle=0.25)
+    assert abs(clean["drift_log_tau1"]) < 1e-4 and abs(clean["drift_log_g1"]) < 1e-4
+    creep = m - 0.002 * m.max() * np.clip(t - T_D, 0.0, None)  # 0.2 % of the peak a second
+    assert drift_diagnostics(t, creep, *args, settle=0.25)["drift_log_tau1"] > 0.05
+    short = t <= T_D + 0.3
+    assert drift_diagnostics(t[short], m[short], *args, settle=0.25) == {
+        "drift_log_g1": 0.0, "drift_log_tau1": 0.0}
+    out = hold_with_intervals(t, creep, *args, settle=0.25)
+    assert out.diagnostics["drift_log_tau1"] == drift_diagnostics(
+        t, creep, *args, settle=0.25)["drift_log_tau1"]
