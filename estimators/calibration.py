@@ -44,20 +44,32 @@ from scipy.optimize import least_squares, minimize
 
 from estimators.errors import EstimationError, instance, mapping
 
-__all__ = ["DRIFT_FEATURES", "ERROR_INPUTS", "FEATURES", "TARGETS", "Calibration", "ErrorModel",
-           "error_inputs", "features", "fit_calibration", "fit_error_model"]
+__all__ = ["ERROR_INPUTS", "FEATURES", "TARGETS", "TARGET_TRACE_FEATURES", "TRACE_FEATURES",
+           "Calibration", "ErrorModel", "error_inputs", "features", "fit_calibration",
+           "fit_error_model"]
 
 FEATURES: tuple[str, ...] = ("1", "cube", "sphere", "log_size", "log_stiffness", "mu", "g1",
                              "log_tau1")
-# Trace diagnostics a calibration may add to FEATURES: how far a linear drift fitted with the
-# hold's exponential moves g1 and tau1 (estimators.uncertainty.drift_diagnostics), a per-trace
-# measure of the contact's creep.  Only tau1's correction uses them (DRIFT_TARGETS): on the
-# validation harness's 256 tuning foods ("measure" probes, 8-fold cross-validated) they took
-# tau1's median |error| after calibration from 2.9 to 2.1 % and its 95th percentile from
-# 18.8 to 16.3 %, while g1's median went from 1.22 to 1.32 % with them, so g1 and K_el
-# leave them out.
-DRIFT_FEATURES: tuple[str, ...] = ("drift_log_g1", "drift_log_tau1")
-DRIFT_TARGETS: tuple[str, ...] = ("tau1",)
+# Trace diagnostics a calibration may add to FEATURES, and which target's correction reads
+# each (TARGET_TRACE_FEATURES; the others' coefficients stay 0):
+# * drift_log_g1, drift_log_tau1: how far a linear drift fitted with the hold's exponential
+#   moves g1 and tau1 (estimators.uncertainty.drift_diagnostics), a per-trace measure of the
+#   contact's creep, which lengthens the held moment's decay;
+# * log_tau_span: log of the fitted decay time over the hold's span, and log_1-r2_clamp: log of
+#   1 - R^2 of the clamp fit (a piece that rocks or settles as the blades close), which say
+#   how far the springs' eq. 7 reading is from the piece's.
+# Chosen on the validation harness's 256 tuning foods ("measure" probes, 8-fold
+# cross-validated, median / 95th percentile of |error| after calibration): tau1 2.9 / 18 %
+# -> 2.1 / 16 % with the drift pair; K1 + K2 4.8 / 33 % -> 4.1 / 19 % with log_tau_span and
+# log_1-r2_clamp; g1 1.24 / 9.3 % with none of them, 1.26 / 9.0 % with the drift pair and
+# 1.24 / 10.1 % with all four, so it reads none.
+TRACE_FEATURES: tuple[str, ...] = ("drift_log_g1", "drift_log_tau1", "log_tau_span",
+                                   "log_1-r2_clamp")
+TARGET_TRACE_FEATURES: dict[str, tuple[str, ...]] = {
+    "K_el": ("log_tau_span", "log_1-r2_clamp"),
+    "g1": (),
+    "tau1": ("drift_log_g1", "drift_log_tau1"),
+}
 TARGETS: tuple[str, ...] = ("K_el", "g1", "tau1")
 SHAPES = ("cube", "ellipsoid", "sphere")
 _SIZE_REF = 0.015  # [m]
@@ -68,13 +80,13 @@ def features(shape: str, size: float, estimate: Mapping[str, float],
              diagnostics: Mapping[str, float] | None = None,
              names: Sequence[str] = FEATURES) -> np.ndarray:
     """The feature vector ``x`` of one probed food (:data:`FEATURES`, then any of
-    :data:`DRIFT_FEATURES` in ``names``).
+    :data:`TRACE_FEATURES` in ``names``).
 
     Args:
         shape: "cube", "ellipsoid" or "sphere". size: nominal size [m].
         estimate: the probe's K1, K2 [N/m], mu, g1, tau1 [s].
-        diagnostics: the trace's diagnostics, where ``names`` has drift features.
-        names: :data:`FEATURES`, or :data:`FEATURES` + :data:`DRIFT_FEATURES`.
+        diagnostics: the trace's diagnostics, where ``names`` has trace features.
+        names: :data:`FEATURES`, or :data:`FEATURES` + :data:`TRACE_FEATURES`.
 
     Raises:
         EstimationError: an unknown shape, a size or estimate that is not finite and positive,
@@ -82,16 +94,31 @@ def features(shape: str, size: float, estimate: Mapping[str, float],
     """
     base = _food_features(shape, size, estimate)
     extra = [n for n in names if n not in FEATURES]
-    if tuple(names) not in (FEATURES, FEATURES + DRIFT_FEATURES):
+    if tuple(names) not in (FEATURES, FEATURES + TRACE_FEATURES):
         raise EstimationError(f"calibration features must be {FEATURES} or that plus "
-                              f"{DRIFT_FEATURES}, got {tuple(names)!r}")
+                              f"{TRACE_FEATURES}, got {tuple(names)!r}")
     diag = mapping("diagnostics", diagnostics) if extra and diagnostics is not None else {}
-    values = [_number(diag.get(n)) for n in extra]
-    for n, v in zip(extra, values, strict=True):
-        if not math.isfinite(v):
-            raise EstimationError(f"calibration needs the trace diagnostic {n!r}, got "
-                                  f"{diag.get(n)!r}")
+    values = [_diagnostic_value(n, diag, "calibration") for n in extra]
     return np.concatenate([base, values]) if extra else base
+
+
+def _diagnostic_value(name: str, diagnostics: Mapping[str, object], user: str) -> float:
+    """A diagnostic by ``name``; a "log_" name that is not itself a diagnostic is the log of
+    the positive diagnostic it names, held within [1e-3, 1e3] ("log_1-r2_clamp": of 1 - the
+    clamp fit's R^2); values are held within +-1e3.
+
+    Raises:
+        EstimationError: the diagnostic is missing or NaN (``user`` names who needed it).
+    """
+    take_log = name not in diagnostics and name.startswith("log_")
+    key = name.removeprefix("log_") if take_log else name
+    if key == "1-r2_clamp":
+        v = 1.0 - _number(diagnostics.get("r2_clamp", math.nan))
+    else:
+        v = _number(diagnostics.get(key, math.nan))
+    if math.isnan(v):
+        raise EstimationError(f"{user}: diagnostic {key!r} is missing or NaN")
+    return math.log(min(max(v, 1e-3), 1e3)) if take_log else min(max(v, -1e3), 1e3)
 
 
 def _food_features(shape: str, size: float, estimate: Mapping[str, float]) -> np.ndarray:
@@ -152,7 +179,7 @@ class Calibration:
         coefficients: target ("K_el", "g1", "tau1") -> one coefficient per feature.
         n_foods: foods it was fitted on. source: what it was fitted on (for the record).
         error_model: the size of the error left after it (:class:`ErrorModel`), if fitted.
-        feature_names: :data:`FEATURES`, or with :data:`DRIFT_FEATURES` (then
+        feature_names: :data:`FEATURES`, or with :data:`TRACE_FEATURES` (then
             :meth:`apply` needs the trace's diagnostics).
     """
 
@@ -166,9 +193,9 @@ class Calibration:
         mapping("calibration coefficients", self.coefficients)
         instance("error_model", self.error_model, ErrorModel | None, "an ErrorModel or None")
         names = tuple(self.feature_names) if isinstance(self.feature_names, Sequence) else ()
-        if names not in (FEATURES, FEATURES + DRIFT_FEATURES):
+        if names not in (FEATURES, FEATURES + TRACE_FEATURES):
             raise EstimationError(f"calibration features must be {FEATURES} or that plus "
-                                  f"{DRIFT_FEATURES}, got {self.feature_names!r}")
+                                  f"{TRACE_FEATURES}, got {self.feature_names!r}")
         for target in TARGETS:
             b = self.coefficients.get(target)
             if not _finite_numbers(b, len(names)):
@@ -214,9 +241,9 @@ class Calibration:
     def from_dict(cls, data: Mapping[str, object]) -> Calibration:
         """Read :meth:`to_dict`'s form (refusing one made for other features)."""
         names = tuple(data.get("features", ()))  # type: ignore[call-overload]
-        if names not in (FEATURES, FEATURES + DRIFT_FEATURES):
+        if names not in (FEATURES, FEATURES + TRACE_FEATURES):
             raise EstimationError(f"calibration features {data.get('features')!r} are not "
-                                  f"{list(FEATURES)} (with or without {list(DRIFT_FEATURES)})")
+                                  f"{list(FEATURES)} (with or without {list(TRACE_FEATURES)})")
         coef = data["coefficients"]
         if not isinstance(coef, Mapping):
             raise EstimationError(f"calibration coefficients must be a mapping, got {coef!r}")
@@ -237,8 +264,8 @@ def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mappi
         f_scale: where the soft L1 loss turns from quadratic to linear, in log units (0.03:
             a 3 % miss counts fully, a 30 % miss a tenth as much as least squares would).
         diagnostics: each food's trace diagnostics, in the order of ``foods``; where given,
-            the calibration adds :data:`DRIFT_FEATURES` to tau1's correction
-            (:data:`DRIFT_TARGETS`; foods without them are skipped).
+            the calibration adds :data:`TRACE_FEATURES` to the corrections that read them
+            (:data:`TARGET_TRACE_FEATURES`; foods without them are skipped).
     Raises:
         EstimationError: fewer usable foods than twice the number of features, or
             ``diagnostics`` not one mapping per food.
@@ -249,7 +276,7 @@ def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mappi
             diagnostics) != len(records)):
         raise EstimationError(f"diagnostics must give one mapping per food ({len(records)}), "
                               f"got {diagnostics!r:.60}")
-    names = FEATURES if diagnostics is None else FEATURES + DRIFT_FEATURES
+    names = FEATURES if diagnostics is None else FEATURES + TRACE_FEATURES
     rows, ys = [], {t: [] for t in TARGETS}
     for i, (shape, size, est, true) in enumerate(records):
         try:
@@ -273,10 +300,13 @@ def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mappi
     coef = {}
     for t in TARGETS:
         y = np.array(ys[t])
-        cols = len(names) if t in DRIFT_TARGETS else len(FEATURES)  # the rest stay 0
-        fit = least_squares(lambda b, y=y, c=cols: X[:, :c] @ b - y, np.zeros(cols),
+        cols = [i for i, n in enumerate(names)
+                if n in FEATURES or n in TARGET_TRACE_FEATURES[t]]  # the rest stay 0
+        fit = least_squares(lambda b, y=y, c=cols: X[:, c] @ b - y, np.zeros(len(cols)),
                             loss="soft_l1", f_scale=f_scale)
-        coef[t] = tuple(float(v) for v in fit.x) + (0.0,) * (len(names) - cols)
+        b = np.zeros(len(names))
+        b[cols] = fit.x
+        coef[t] = tuple(float(v) for v in b)
     return Calibration(coef, len(rows), source, feature_names=names)
 
 
@@ -313,15 +343,7 @@ def error_inputs(target: str, shape: str, size: float, estimate: Mapping[str, fl
         if name in x:
             out.append(float(x[name]))
             continue
-        take_log = name not in diagnostics and name.startswith("log_")
-        key = name.removeprefix("log_") if take_log else name
-        if key == "1-r2_clamp":
-            v = 1.0 - _number(diagnostics.get("r2_clamp", math.nan))
-        else:
-            v = _number(diagnostics.get(key, math.nan))
-        if math.isnan(v):
-            raise EstimationError(f"error model: diagnostic {key!r} is missing or NaN")
-        out.append(math.log(min(max(v, 1e-3), 1e3)) if take_log else min(max(v, -1e3), 1e3))
+        out.append(_diagnostic_value(name, diagnostics, "error model"))
     return np.array(out, dtype=float)
 
 

@@ -50,7 +50,8 @@ reporting runs say how well they hold on other foods:
   `fetch_env/assets/probe_calibration.json`): a robust fit of `log(estimate / truth)` of
   K1 + K2, g1 and tau1 against what the robot knows (shape, size, the probe's own K, mu, g1,
   tau1; for tau1 also how far a linear drift fitted with the hold's exponential moves g1 and
-  tau1, a per-trace measure of the contact's creep), which the probes then divide out:
+  tau1, a per-trace measure of the contact's creep; for K1 + K2 the fitted decay time over
+  the hold's span and the clamp fit's R^2), which the probes then divide out:
   `python benchmarks/validate_estimators.py
   --preset measure --fit-calibration docs/data/validation/tuning_measure_uncal_noise0.json
   docs/data/validation/tuning_measure_uncal_noise0.01.json` (256 foods each);

@@ -10,8 +10,8 @@ from numpy.testing import assert_allclose
 
 from estimators import EstimationError
 from estimators.calibration import (
-    DRIFT_FEATURES,
     FEATURES,
+    TRACE_FEATURES,
     Calibration,
     features,
     fit_calibration,
@@ -94,27 +94,36 @@ def test_the_shipped_measure_calibration_is_fitted_on_tuning_foods() -> None:
     assert "tuning set, seed 1000" in cal.source and cal.n_foods >= 48
 
 
-def test_drift_features_correct_tau1_only_and_are_required_once_fitted() -> None:
-    """With the trace's drift diagnostics, the fit recovers a tau1 bias that follows them
-    (and leaves g1 and K_el without them); applying it needs them, and says which is missing."""
+def test_trace_features_correct_only_their_targets_and_are_required_once_fitted() -> None:
+    """With the trace's diagnostics, the fit recovers a tau1 bias that follows the drift pair
+    and a K_el bias that follows the clamp fit's R^2, and gives g1 none of them; applying it
+    needs them, and says which is missing."""
     foods = _foods(80, 7)
     rng = np.random.default_rng(8)
     diags, biased = [], []
     for shape, size, est, truth in foods:
         d = {"drift_log_g1": float(rng.normal(0, 0.05)),
-             "drift_log_tau1": float(rng.normal(0, 0.1))}
+             "drift_log_tau1": float(rng.normal(0, 0.1)),
+             "tau_span": float(np.exp(rng.uniform(-3, 0))), "r2_clamp": float(rng.uniform(0, 1))}
         diags.append(d)
         tau = est["tau1"] * math.exp(0.4 * d["drift_log_tau1"] - 0.3 * d["drift_log_g1"])
-        biased.append((shape, size, {**est, "tau1": tau}, truth))
+        k = math.exp(0.05 * math.log(max(1 - d["r2_clamp"], 1e-3)))
+        biased.append((shape, size, {**est, "tau1": tau, "K1": est["K1"] * k,
+                                     "K2": est["K2"] * k}, truth))
     cal = fit_calibration(biased, diagnostics=diags)
-    assert cal.feature_names == FEATURES + DRIFT_FEATURES
-    assert_allclose(cal.coefficients["tau1"][-2:], (-0.3, 0.4), atol=0.02)
-    assert cal.coefficients["g1"][-2:] == (0.0, 0.0) == cal.coefficients["K_el"][-2:]
+    assert cal.feature_names == FEATURES + TRACE_FEATURES
+    n = len(FEATURES)
+    assert_allclose(cal.coefficients["tau1"][n:], (-0.3, 0.4, 0.0, 0.0), atol=0.02)
+    assert_allclose(cal.coefficients["K_el"][n:], (0.0, 0.0, 0.0, 0.05), atol=0.01)
+    assert cal.coefficients["K_el"][n:n + 2] == (0.0, 0.0) == cal.coefficients["tau1"][n + 2:]
+    assert cal.coefficients["g1"][n:] == (0.0,) * len(TRACE_FEATURES)
     assert Calibration.from_dict(cal.to_dict()) == cal
     shape, size, est, truth = biased[0]
     fixed, _ = cal.apply(shape, size, est, diags[0])
-    assert_allclose(fixed["tau1"], truth["tau1"], rtol=0.02)
+    assert_allclose([fixed["tau1"], fixed["K1"]], [truth["tau1"], truth["K1"]], rtol=0.03)
     with pytest.raises(EstimationError, match="drift_log_g1"):
         cal.apply(shape, size, est)
+    with pytest.raises(EstimationError, match="r2_clamp"):
+        cal.apply(shape, size, est, {**diags[0], "r2_clamp": math.nan})
     with pytest.raises(EstimationError, match="one mapping per food"):
         fit_calibration(biased, diagnostics=diags[:-1])
