@@ -44,14 +44,24 @@ from scipy.optimize import least_squares, minimize
 
 from estimators.errors import EstimationError, instance, mapping
 
-__all__ = ["ERROR_INPUTS", "FEATURES", "TARGETS", "TARGET_TRACE_FEATURES", "TRACE_FEATURES",
-           "Calibration", "ErrorModel", "error_inputs", "features", "fit_calibration",
-           "fit_error_model"]
+__all__ = [
+    "ERROR_INPUTS",
+    "EXTRA_FEATURES",
+    "FEATURES",
+    "TARGETS",
+    "TARGET_EXTRA_FEATURES",
+    "Calibration",
+    "ErrorModel",
+    "error_inputs",
+    "features",
+    "fit_calibration",
+    "fit_error_model",
+]
 
 FEATURES: tuple[str, ...] = ("1", "cube", "sphere", "log_size", "log_stiffness", "mu", "g1",
                              "log_tau1")
 # Trace diagnostics a calibration may add to FEATURES, and which target's correction reads
-# each (TARGET_TRACE_FEATURES; the others' coefficients stay 0):
+# each (TARGET_EXTRA_FEATURES; the others' coefficients stay 0):
 # * drift_log_g1, drift_log_tau1: how far a linear drift fitted with the hold's exponential
 #   moves g1 and tau1 (estimators.uncertainty.drift_diagnostics), a per-trace measure of the
 #   contact's creep, which lengthens the held moment's decay;
@@ -61,11 +71,12 @@ FEATURES: tuple[str, ...] = ("1", "cube", "sphere", "log_size", "log_stiffness",
 # Chosen on the validation harness's 256 tuning foods ("measure" probes, 8-fold
 # cross-validated, median / 95th percentile of |error| after calibration): tau1 2.9 / 18 %
 # -> 2.1 / 16 % with the drift pair; K1 + K2 4.8 / 33 % -> 4.1 / 19 % with log_tau_span and
-# log_1-r2_clamp; g1 1.24 / 9.3 % with none of them, 1.26 / 9.0 % with the drift pair and
-# 1.24 / 10.1 % with all four, so it reads none.
-TRACE_FEATURES: tuple[str, ...] = ("drift_log_g1", "drift_log_tau1", "log_tau_span",
+# log_1-r2_clamp.  g1 reads none: 1.24 / 9.3 % without, 1.26 / 9.0 % with the drift pair,
+# 1.24 / 10.1 % with all four; a stiffness that saturates as a series compliance would
+# (log(1 + K1 / (5e9 size^3))) gave 1.20 / 10.0 -> 1.14 / 11.2 %, not kept.
+EXTRA_FEATURES: tuple[str, ...] = ("drift_log_g1", "drift_log_tau1", "log_tau_span",
                                    "log_1-r2_clamp")
-TARGET_TRACE_FEATURES: dict[str, tuple[str, ...]] = {
+TARGET_EXTRA_FEATURES: dict[str, tuple[str, ...]] = {
     "K_el": ("log_tau_span", "log_1-r2_clamp"),
     "g1": (),
     "tau1": ("drift_log_g1", "drift_log_tau1"),
@@ -80,13 +91,13 @@ def features(shape: str, size: float, estimate: Mapping[str, float],
              diagnostics: Mapping[str, float] | None = None,
              names: Sequence[str] = FEATURES) -> np.ndarray:
     """The feature vector ``x`` of one probed food (:data:`FEATURES`, then any of
-    :data:`TRACE_FEATURES` in ``names``).
+    :data:`EXTRA_FEATURES` in ``names``).
 
     Args:
         shape: "cube", "ellipsoid" or "sphere". size: nominal size [m].
         estimate: the probe's K1, K2 [N/m], mu, g1, tau1 [s].
-        diagnostics: the trace's diagnostics, where ``names`` has trace features.
-        names: :data:`FEATURES`, or :data:`FEATURES` + :data:`TRACE_FEATURES`.
+        diagnostics: the trace's diagnostics, where ``names`` has extra features.
+        names: :data:`FEATURES`, or :data:`FEATURES` + :data:`EXTRA_FEATURES`.
 
     Raises:
         EstimationError: an unknown shape, a size or estimate that is not finite and positive,
@@ -94,9 +105,9 @@ def features(shape: str, size: float, estimate: Mapping[str, float],
     """
     base = _food_features(shape, size, estimate)
     extra = [n for n in names if n not in FEATURES]
-    if tuple(names) not in (FEATURES, FEATURES + TRACE_FEATURES):
+    if tuple(names) not in (FEATURES, FEATURES + EXTRA_FEATURES):
         raise EstimationError(f"calibration features must be {FEATURES} or that plus "
-                              f"{TRACE_FEATURES}, got {tuple(names)!r}")
+                              f"{EXTRA_FEATURES}, got {tuple(names)!r}")
     diag = mapping("diagnostics", diagnostics) if extra and diagnostics is not None else {}
     values = [_diagnostic_value(n, diag, "calibration") for n in extra]
     return np.concatenate([base, values]) if extra else base
@@ -179,7 +190,7 @@ class Calibration:
         coefficients: target ("K_el", "g1", "tau1") -> one coefficient per feature.
         n_foods: foods it was fitted on. source: what it was fitted on (for the record).
         error_model: the size of the error left after it (:class:`ErrorModel`), if fitted.
-        feature_names: :data:`FEATURES`, or with :data:`TRACE_FEATURES` (then
+        feature_names: :data:`FEATURES`, or with :data:`EXTRA_FEATURES` (then
             :meth:`apply` needs the trace's diagnostics).
     """
 
@@ -193,9 +204,9 @@ class Calibration:
         mapping("calibration coefficients", self.coefficients)
         instance("error_model", self.error_model, ErrorModel | None, "an ErrorModel or None")
         names = tuple(self.feature_names) if isinstance(self.feature_names, Sequence) else ()
-        if names not in (FEATURES, FEATURES + TRACE_FEATURES):
+        if names not in (FEATURES, FEATURES + EXTRA_FEATURES):
             raise EstimationError(f"calibration features must be {FEATURES} or that plus "
-                                  f"{TRACE_FEATURES}, got {self.feature_names!r}")
+                                  f"{EXTRA_FEATURES}, got {self.feature_names!r}")
         for target in TARGETS:
             b = self.coefficients.get(target)
             if not _finite_numbers(b, len(names)):
@@ -241,9 +252,9 @@ class Calibration:
     def from_dict(cls, data: Mapping[str, object]) -> Calibration:
         """Read :meth:`to_dict`'s form (refusing one made for other features)."""
         names = tuple(data.get("features", ()))  # type: ignore[call-overload]
-        if names not in (FEATURES, FEATURES + TRACE_FEATURES):
+        if names not in (FEATURES, FEATURES + EXTRA_FEATURES):
             raise EstimationError(f"calibration features {data.get('features')!r} are not "
-                                  f"{list(FEATURES)} (with or without {list(TRACE_FEATURES)})")
+                                  f"{list(FEATURES)} (with or without {list(EXTRA_FEATURES)})")
         coef = data["coefficients"]
         if not isinstance(coef, Mapping):
             raise EstimationError(f"calibration coefficients must be a mapping, got {coef!r}")
@@ -264,8 +275,8 @@ def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mappi
         f_scale: where the soft L1 loss turns from quadratic to linear, in log units (0.03:
             a 3 % miss counts fully, a 30 % miss a tenth as much as least squares would).
         diagnostics: each food's trace diagnostics, in the order of ``foods``; where given,
-            the calibration adds :data:`TRACE_FEATURES` to the corrections that read them
-            (:data:`TARGET_TRACE_FEATURES`; foods without them are skipped).
+            the calibration adds :data:`EXTRA_FEATURES` to the corrections that read them
+            (:data:`TARGET_EXTRA_FEATURES`; foods without them are skipped).
     Raises:
         EstimationError: fewer usable foods than twice the number of features, or
             ``diagnostics`` not one mapping per food.
@@ -276,7 +287,7 @@ def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mappi
             diagnostics) != len(records)):
         raise EstimationError(f"diagnostics must give one mapping per food ({len(records)}), "
                               f"got {diagnostics!r:.60}")
-    names = FEATURES if diagnostics is None else FEATURES + TRACE_FEATURES
+    names = FEATURES if diagnostics is None else FEATURES + EXTRA_FEATURES
     rows, ys = [], {t: [] for t in TARGETS}
     for i, (shape, size, est, true) in enumerate(records):
         try:
@@ -301,7 +312,7 @@ def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mappi
     for t in TARGETS:
         y = np.array(ys[t])
         cols = [i for i, n in enumerate(names)
-                if n in FEATURES or n in TARGET_TRACE_FEATURES[t]]  # the rest stay 0
+                if n in FEATURES or n in TARGET_EXTRA_FEATURES[t]]  # the rest stay 0
         fit = least_squares(lambda b, y=y, c=cols: X[:, c] @ b - y, np.zeros(len(cols)),
                             loss="soft_l1", f_scale=f_scale)
         b = np.zeros(len(names))

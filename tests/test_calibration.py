@@ -10,8 +10,8 @@ from numpy.testing import assert_allclose
 
 from estimators import EstimationError
 from estimators.calibration import (
+    EXTRA_FEATURES,
     FEATURES,
-    TRACE_FEATURES,
     Calibration,
     features,
     fit_calibration,
@@ -94,10 +94,10 @@ def test_the_shipped_measure_calibration_is_fitted_on_tuning_foods() -> None:
     assert "tuning set, seed 1000" in cal.source and cal.n_foods >= 48
 
 
-def test_trace_features_correct_only_their_targets_and_are_required_once_fitted() -> None:
+def test_extra_features_correct_only_their_targets_and_are_required_once_fitted() -> None:
     """With the trace's diagnostics, the fit recovers a tau1 bias that follows the drift pair
-    and a K_el bias that follows the clamp fit's R^2, and gives g1 none of them; applying it
-    needs them, and says which is missing."""
+    and a K_el bias that follows the clamp fit's R^2, and no g1 bias where there is none;
+    applying it needs the diagnostics, and says which is missing."""
     foods = _foods(80, 7)
     rng = np.random.default_rng(8)
     diags, biased = [], []
@@ -111,12 +111,13 @@ def test_trace_features_correct_only_their_targets_and_are_required_once_fitted(
         biased.append((shape, size, {**est, "tau1": tau, "K1": est["K1"] * k,
                                      "K2": est["K2"] * k}, truth))
     cal = fit_calibration(biased, diagnostics=diags)
-    assert cal.feature_names == FEATURES + TRACE_FEATURES
+    assert cal.feature_names == FEATURES + EXTRA_FEATURES
     n = len(FEATURES)
     assert_allclose(cal.coefficients["tau1"][n:], (-0.3, 0.4, 0.0, 0.0), atol=0.02)
     assert_allclose(cal.coefficients["K_el"][n:], (0.0, 0.0, 0.0, 0.05), atol=0.01)
+    # each target reads only its own extra features (TARGET_EXTRA_FEATURES): the rest are 0
     assert cal.coefficients["K_el"][n:n + 2] == (0.0, 0.0) == cal.coefficients["tau1"][n + 2:]
-    assert cal.coefficients["g1"][n:] == (0.0,) * len(TRACE_FEATURES)
+    assert cal.coefficients["g1"][n:] == (0.0,) * len(EXTRA_FEATURES)
     assert Calibration.from_dict(cal.to_dict()) == cal
     shape, size, est, truth = biased[0]
     fixed, _ = cal.apply(shape, size, est, diags[0])
