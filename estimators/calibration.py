@@ -14,8 +14,11 @@ is fitted, by a robust least-squares fit (``scipy.optimize.least_squares``, soft
 that a few foods the probe failed on do not steer it), for the instantaneous stiffness
 ``K_el = K1 + K2``, for g1 and for tau1, with features ``x`` that the robot knows at the
 time: the piece's shape and size (a camera), and the probe's own estimates of K_el, mu, g1
-and tau1.  Applying it divides each estimate by ``exp(b . x)``; K1, K2 and B then follow
-from the corrected K_el, g1 and tau1, so they stay one consistent SLS.
+and tau1, and optionally (:data:`EXTRA_FEATURES`) what the trace itself says about the
+contact: how far a linear drift fitted with the hold's exponential moves tau1 and g1 (a
+creeping contact), how long the decay is against the hold, how SLS-like the clamp rise was.
+Applying it divides each estimate by ``exp(b . x)``; K1, K2 and B then follow from the
+corrected K_el, g1 and tau1, so they stay one consistent SLS.
 
 What the calibration leaves is a per-food error that the trace's own scatter does not show
 (the noise and window-shift parts of :mod:`estimators.uncertainty` miss it: a compliant
@@ -101,7 +104,7 @@ def features(shape: str, size: float, estimate: Mapping[str, float],
 
     Raises:
         EstimationError: an unknown shape, a size or estimate that is not finite and positive,
-            a drift feature missing from ``diagnostics`` or not finite.
+            an extra feature's diagnostic missing from ``diagnostics`` or NaN.
     """
     base = _food_features(shape, size, estimate)
     extra = [n for n in names if n not in FEATURES]
@@ -219,9 +222,9 @@ class Calibration:
               ) -> tuple[dict[str, float], list[str]]:
         """The calibrated K1, K2, B, g1, tau1 (mu and any other keys unchanged), and warnings.
 
-        ``diagnostics``: the trace's (:func:`estimators.uncertainty.drift_diagnostics`),
-        needed where :attr:`feature_names` has drift features.  A calibrated g1 that would
-        reach 1 is held at 0.99 and said so.
+        ``diagnostics``: the trace's (``hold_with_intervals(...).diagnostics`` with the clamp
+        fit's ``r2_clamp``), needed where :attr:`feature_names` has extra features.  A
+        calibrated g1 that would reach 1 is held at 0.99 and said so.
 
         Raises:
             EstimationError: as :func:`features`.

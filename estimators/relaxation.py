@@ -395,7 +395,7 @@ def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float, drift: bool = Fa
     separates the two: on a shorter one the line trades off against the decay.  (On the
     validation harness's tuning foods, a 19.75 s hold, it cut tau1's median error from 6.1 to
     4.6 % but raised g1's from 2.3 to 3.7 %; the probes use the plain fit, and the two fits'
-    disagreement as a calibration input, :func:`estimators.uncertainty.hold_diagnostics`.)
+    disagreement as a calibration input, :func:`estimators.uncertainty.drift_diagnostics`.)
 
     Raises:
         EstimationError: fewer than 10 hold samples, or a ``t_d`` that is not a real number.
