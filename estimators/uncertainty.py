@@ -174,6 +174,7 @@ def hold_with_intervals(
     scale: float = INTERVAL_SCALE,
     systematic: dict[str, float] | None = None,
     drift: bool = False,
+    with_drift_diagnostics: bool = True,
 ) -> HoldWithIntervals:
     """:func:`estimators.estimate_from_hold` with 95 % intervals that include model error.
 
@@ -182,7 +183,8 @@ def hold_with_intervals(
     by name, a validated systematic log-sd of the measurement method (a type B uncertainty:
     what a validation against known foods showed the method misses by beyond what the trace
     itself reveals), added in quadrature; ``drift`` fits a linear drift with the exponential
-    on every window (:func:`estimators.fit_hold_relaxation`).
+    on every window (:func:`estimators.fit_hold_relaxation`); ``with_drift_diagnostics``
+    adds :func:`drift_diagnostics` to the diagnostics (one more fit, ~4 ms).
 
     Raises:
         EstimationError: as :func:`estimators.estimate_from_hold` on the full window.
@@ -221,7 +223,8 @@ def hold_with_intervals(
     intervals = {k: log_interval(getattr(est, k), math.hypot(
         scale * math.hypot(noise[k], model[k]), floor.get(k, 0.0))) for k in _NAMES}
     diag = hold_diagnostics(est, tt, mm, t_d + settle)
-    diag.update(drift_diagnostics(tt, mm, *args, settle=settle, fitted=est, drifted=drift))
+    if with_drift_diagnostics:
+        diag.update(drift_diagnostics(tt, mm, *args, settle=settle, fitted=est, drifted=drift))
     return HoldWithIntervals(est, intervals, noise, model, alternates, diag)
 
 

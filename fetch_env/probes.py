@@ -59,6 +59,7 @@ for K1, K2 and B from the piece's size (see :func:`true_parameters`).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import os
@@ -385,14 +386,16 @@ def _noisy(x: np.ndarray, noise: float, rng: np.random.Generator | None) -> np.n
 
 def estimate_viscoelastic(result: SimResult, noise: float = 0.0,
                           rng: np.random.Generator | None = None,
-                          diagnostics: dict[str, float] | None = None
+                          diagnostics: dict[str, float] | None = None,
+                          drift_diagnostics: bool = True
                           ) -> tuple[dict[str, float], list[str], dict[str, tuple[float, float]]]:
     """K1, K2, B, g1, tau1 from a relaxation run, with 95 % intervals: from the hold past
     ``HOLD_SETTLE``, with the contact angle of the full fit (else the three-step method),
     whose values stand in where the hold gives none (their intervals then NaN).
 
     ``noise`` (with ``rng``) adds white noise of that share of the peak to the moment first.
-    ``diagnostics``, where given, receives the fit's diagnostics (:func:`_from_the_hold`).
+    ``diagnostics``, where given, receives the fit's diagnostics (:func:`_from_the_hold`),
+    with :func:`estimators.uncertainty.drift_diagnostics` where ``drift_diagnostics``.
 
     Raises :class:`EstimationError` when neither method can use the trace.
     """
@@ -425,14 +428,16 @@ def estimate_viscoelastic(result: SimResult, noise: float = 0.0,
             errors.append(f"{method.__name__}: {type(exc).__name__}: {exc}")
             continue
         if all(np.isfinite(v) and v > 0 for v in _visco_values(est).values()):
-            vals, warns, intervals = _from_the_hold(est, t, moment, geom, diagnostics)
+            vals, warns, intervals = _from_the_hold(est, t, moment, geom, diagnostics,
+                                                    drift_diagnostics)
             return vals, [*errors, *warns], intervals
         errors.append(f"{method.__name__}: not identified ({'; '.join(est.warnings)})")
     raise EstimationError("; ".join(errors))
 
 
 def _from_the_hold(est: ViscoelasticEstimate, t: np.ndarray, moment: np.ndarray,
-                   geom: ClampGeometry, diagnostics: dict[str, float] | None = None
+                   geom: ClampGeometry, diagnostics: dict[str, float] | None = None,
+                   drift_diagnostics: bool = True
                    ) -> tuple[dict[str, float], list[str], dict[str, tuple[float, float]]]:
     """K1, K2, B, g1, tau1 from the hold alone (:func:`estimators.estimate_from_hold`, past
     ``HOLD_SETTLE``) with their 95 % intervals (:func:`estimators.uncertainty.
@@ -450,7 +455,8 @@ def _from_the_hold(est: ViscoelasticEstimate, t: np.ndarray, moment: np.ndarray,
     try:
         hwi = hold_with_intervals(t, moment, geom, est.theta_1, est.theta_d, est.omega, est.t_d,
                                   settle=HOLD_SETTLE, systematic={
-                                      k: v for k, v in PROBE_SYSTEMATIC_SD.items() if k != "mu"})
+                                      k: v for k, v in PROBE_SYSTEMATIC_SD.items() if k != "mu"},
+                                  with_drift_diagnostics=drift_diagnostics)
         hold = hwi.estimate
     except (EstimationError, ArithmeticError) as exc:
         hold, why = None, str(exc)
@@ -571,8 +577,9 @@ def _mu_sd_log(mu: float, est: Any, envelope: float) -> float:
 
 def _relaxation_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | None,
                       noise: float, rng: np.random.Generator, out: ProbeOutcome,
-                      keep_traces: bool) -> None:
-    """Run the relaxation probe on ``piece`` and put its estimates into ``out``."""
+                      keep_traces: bool, drift_diagnostics: bool = True) -> None:
+    """Run the relaxation probe on ``piece`` and put its estimates into ``out`` (with the
+    hold's drift diagnostics where ``drift_diagnostics``)."""
     sim = FetchSimulator((piece,), geometry, impratio=config.relaxation_impratio,
                          timestep=config.relaxation_timestep)
     theta_d = probe_angle(sim, config.strain, "relaxation")
@@ -588,7 +595,8 @@ def _relaxation_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | No
         out.traces["relaxation"] = res.traces
     fit_start, cpu_start = time.perf_counter(), time.process_time()
     vals, warns, intervals = estimate_viscoelastic(res, noise, rng,
-                                                   out.details.setdefault("diagnostics", {}))
+                                                   out.details.setdefault("diagnostics", {}),
+                                                   drift_diagnostics)
     out.details["wall_fits"] = out.details.get("wall_fits", 0.0) + time.perf_counter() - fit_start
     _add_cpu(out, "cpu_fits", cpu_start)
     out.estimates.update(vals)
@@ -696,7 +704,11 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     out = ProbeOutcome(estimates=dict.fromkeys(PARAM_NAMES, math.nan), visco_valid=False,
                        friction_valid=False, wall_time=0.0, piece_index=k,
                        intervals=dict.fromkeys(PARAM_NAMES, nan))
-    for name, probe in (("relaxation", _relaxation_probe), ("slip", _slip_probe)):
+    # The drift diagnostics cost a fit: computed where the calibration reads them, or where
+    # none is applied (a run that a calibration may be fitted on).
+    drift = calibration is None or any(n.startswith("drift_") for n in calibration.feature_names)
+    relaxation = functools.partial(_relaxation_probe, drift_diagnostics=drift)
+    for name, probe in (("relaxation", relaxation), ("slip", _slip_probe)):
         try:
             probe(piece, config, geometry, noise, rng, out, keep_traces)
         except (EstimationError, SimulationDivergedError, ArithmeticError) as exc:

@@ -307,3 +307,23 @@ def test_a_stalled_relaxation_probe_is_estimated_at_the_angle_it_stalled_at() ->
     # A stiff cube is the estimators' worst class (contact chatter); measured +20 % / -32 %,
     # and +40 % for g1 with the material rounded to 4 digits: the bar is identification.
     assert 0.5 < est["g1"] / material.g1 < 2.0 and 0.5 < est["tau1"] / material.tau1 < 2.0
+
+
+def test_drift_diagnostics_are_computed_where_a_calibration_reads_them() -> None:
+    """The hold's drift diagnostics (one more fit) are recorded for the "measure" calibration,
+    which reads them, and for uncalibrated probes (a calibration may be fitted on them), but
+    not for the "env" calibration, which does not; its estimates are the same either way."""
+    from fetch_env.probes import PROBE_CALIBRATIONS, PROBE_PRESETS
+
+    pieces = single_block(material=Material(young=2e5, poisson=0.3, density=1000.0, g1=0.4,
+                                            tau1=1.5, mu=0.5))
+    config = PROBE_PRESETS["env"]
+    with_env = run_probes(pieces, config, calibration=PROBE_CALIBRATIONS["env"])
+    raw = run_probes(pieces, config)
+    assert "drift_log_tau1" not in with_env.details["diagnostics"]
+    assert "drift_log_tau1" in raw.details["diagnostics"]
+    assert with_env.details["uncalibrated"] == pytest.approx(raw.estimates, rel=1e-12)
+    measured = run_probes(pieces, PROBE_PRESETS["measure"],
+                          calibration=PROBE_CALIBRATIONS["measure"])
+    assert "drift_log_tau1" in measured.details["diagnostics"]
+    assert "not calibrated" not in " ".join(measured.warnings)
