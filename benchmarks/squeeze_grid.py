@@ -45,10 +45,9 @@ from fetch_env.scene import Geometry
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.headroom import _raise_interrupt  # noqa: E402
 from benchmarks.readme_meta import meta, write_json  # noqa: E402
 from benchmarks.theta_sweep import seed_range  # noqa: E402
-from benchmarks.validate_estimators import _worker_signals  # noqa: E402
+from benchmarks.validate_estimators import _raise_interrupt, _worker_signals  # noqa: E402
 
 SQUEEZES = (0.0, 0.02, 0.04, 0.06, 0.08, 0.10, 0.12, 0.15, 0.18, 0.22, 0.27)
 SPEEDS = ((0.4, 0.04), (0.2, 0.02))  # (omega [rad/s], lift_speed [m/s])
@@ -87,11 +86,18 @@ def scene_row(env_id: str, seed: int, squeezes: tuple[float, ...],
 def stiffest_young(env_id: str, seed: int) -> float:
     """[Pa] the stiffest piece of the scene ``reset(seed=seed)`` builds, without the probes
     (``estimator="none"``) or a fetch."""
+    return stiffest_youngs(env_id, [seed])[seed]
+
+
+def stiffest_youngs(env_id: str, seeds: list[int]) -> dict[int, float]:
+    """:func:`stiffest_young` of each of ``seeds``, on one env."""
     env = gym.make(env_id, estimator="none")
-    env.reset(seed=seed)
-    young = max(p.material.young for p in env.unwrapped.pieces)
+    out = {}
+    for seed in seeds:
+        env.reset(seed=seed)
+        out[seed] = max(p.material.young for p in env.unwrapped.pieces)
     env.close()
-    return young
+    return out
 
 
 def _ci(x: np.ndarray) -> list[float]:
@@ -194,7 +200,8 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--max-young must be > 0 MPa, got {args.max_young}")
     seeds = list(args.seeds)
     if args.max_young is not None:
-        seeds = [s for s in seeds if stiffest_young(args.env, s) <= args.max_young * 1e6]
+        young = stiffest_youngs(args.env, seeds)
+        seeds = [s for s in seeds if young[s] <= args.max_young * 1e6]
         if not seeds:
             p.error(f"no scene of seeds {args.seeds.start}-{args.seeds.stop - 1} has its "
                     f"stiffest piece at most {args.max_young} MPa")

@@ -173,7 +173,6 @@ def hold_with_intervals(
     settle: float = 0.0,
     scale: float = INTERVAL_SCALE,
     systematic: dict[str, float] | None = None,
-    drift: bool = False,
     with_drift_diagnostics: bool = True,
 ) -> HoldWithIntervals:
     """:func:`estimators.estimate_from_hold` with 95 % intervals that include model error.
@@ -182,9 +181,8 @@ def hold_with_intervals(
     window parts of the standard deviation (see the module docstring); ``systematic`` gives,
     by name, a validated systematic log-sd of the measurement method (a type B uncertainty:
     what a validation against known foods showed the method misses by beyond what the trace
-    itself reveals), added in quadrature; ``drift`` fits a linear drift with the exponential
-    on every window (:func:`estimators.fit_hold_relaxation`); ``with_drift_diagnostics``
-    adds :func:`drift_diagnostics` to the diagnostics (one more fit, ~4 ms).
+    itself reveals), added in quadrature; ``with_drift_diagnostics`` adds
+    :func:`drift_diagnostics` to the diagnostics (one more fit, ~4 ms).
 
     Raises:
         EstimationError: as :func:`estimators.estimate_from_hold` on the full window.
@@ -196,15 +194,14 @@ def hold_with_intervals(
     tt, traces = check_traces(t, M=M)
     mm = traces["M"]
     args = (geometry, theta_1, theta_d, omega, t_d)
-    est = estimate_from_hold(tt, mm, *args, settle=settle, drift=drift)
+    est = estimate_from_hold(tt, mm, *args, settle=settle)
     span = float(tt[-1]) - (t_d + settle)
     alternates = []
     for head, tail in WINDOW_SHIFTS:
         keep = tt <= tt[-1] - tail * span + 1e-12
         try:
             alternates.append(estimate_from_hold(tt[keep], mm[keep], *args,
-                                                 settle=settle + head * span,
-                                                 drift=drift))
+                                                 settle=settle + head * span))
         except (EstimationError, ArithmeticError):
             continue  # a window too short to fit says nothing either way
     noise = _noise_sd(est, tt, mm, geometry, theta_1, theta_d, omega, t_d, settle)
@@ -224,15 +221,14 @@ def hold_with_intervals(
         scale * math.hypot(noise[k], model[k]), floor.get(k, 0.0))) for k in _NAMES}
     diag = hold_diagnostics(est, tt, mm, t_d + settle)
     if with_drift_diagnostics:
-        diag.update(drift_diagnostics(tt, mm, *args, settle=settle, fitted=est, drifted=drift))
+        diag.update(drift_diagnostics(tt, mm, *args, settle=settle, plain=est))
     return HoldWithIntervals(est, intervals, noise, model, alternates, diag)
 
 
 def drift_diagnostics(t: np.ndarray, m: np.ndarray, geometry: ClampGeometry, theta_1: float,
                       theta_d: float, omega: float, t_d: float, settle: float = 0.0,
-                      fitted: HoldEstimate | None = None, drifted: bool = False
-                      ) -> dict[str, float]:
-    """How much a linear drift fitted with the exponential moves g1 and tau1:
+                      plain: HoldEstimate | None = None) -> dict[str, float]:
+    """How much a linear drift fitted with the hold's exponential moves g1 and tau1:
     ``drift_log_g1`` and ``drift_log_tau1``, the log of the plain fit's value over the
     drift fit's (:func:`estimators.fit_hold_relaxation`), held within +-1; 0 where either fit
     fails.
@@ -240,15 +236,14 @@ def drift_diagnostics(t: np.ndarray, m: np.ndarray, geometry: ClampGeometry, the
     Why: a compliant contact that creeps lengthens the held moment's decay and the drift
     fit takes part of that back, so the two fits' disagreement says, per trace, how far the
     plain fit was pulled; a calibration (:mod:`estimators.calibration`) learns how much of it
-    to undo.  ``fitted`` is an estimate already made on these arguments (plain, or with
-    ``drifted``, the drift fit), so that only the other fit is run.
+    to undo.  ``plain``: the plain estimate already made on these arguments, so that only
+    the drift fit is run.
     """
     args = (geometry, theta_1, theta_d, omega, t_d)
     try:
-        plain = fitted if fitted is not None and not drifted else estimate_from_hold(
-            t, m, *args, settle=settle)
-        with_drift = fitted if fitted is not None and drifted else estimate_from_hold(
-            t, m, *args, settle=settle, drift=True)
+        if plain is None:
+            plain = estimate_from_hold(t, m, *args, settle=settle)
+        with_drift = estimate_from_hold(t, m, *args, settle=settle, drift=True)
     except (EstimationError, ArithmeticError):
         return dict.fromkeys(DRIFT_DIAGNOSTICS, 0.0)
     out = {}

@@ -80,7 +80,7 @@ from estimators import (
     estimate_three_step,
 )
 from estimators.calibration import ERROR_INPUTS, Calibration
-from estimators.uncertainty import hold_with_intervals, log_interval
+from estimators.uncertainty import DRIFT_DIAGNOSTICS, hold_with_intervals, log_interval
 from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator, SimResult, TimeScale
 from fetch_env.errors import (
     SimulationDivergedError,
@@ -706,7 +706,8 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
                        intervals=dict.fromkeys(PARAM_NAMES, nan))
     # The drift diagnostics cost a fit: computed where the calibration reads them, or where
     # none is applied (a run that a calibration may be fitted on).
-    drift = calibration is None or any(n.startswith("drift_") for n in calibration.feature_names)
+    drift = calibration is None or not set(DRIFT_DIAGNOSTICS).isdisjoint(
+        calibration.feature_names)
     relaxation = functools.partial(_relaxation_probe, drift_diagnostics=drift)
     for name, probe in (("relaxation", relaxation), ("slip", _slip_probe)):
         try:
