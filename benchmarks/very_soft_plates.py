@@ -2,6 +2,7 @@
 
 Run: python benchmarks/very_soft_plates.py [--out docs/data/very_soft_plates.json]
      python benchmarks/very_soft_plates.py --spaced [--out docs/data/very_soft_plates_spaced.json]
+     python benchmarks/very_soft_plates.py --levels FoodFetch-TwoRows-v2 [--out JSON]
 
 Two checks, at the fastest clamp and lift (0.4 rad/s, 40 mm/s), on FoodFetch-TwoRows-v1:
 
@@ -19,6 +20,12 @@ rebuilt with its rows 1 mm apart across the clamp (0.01 mm in the id; the same c
 and material, 1 mm along) and fetched at clamp angles from 0.03 to 0.10 rad: whether the
 spacing that resolves the 2 x 2 plate of check 1 makes the id's very soft plates a choice of
 angle rather than a lottery.
+
+With ``--levels ID``, a fourth check alone: 4. every plate of the id's softest level among
+the tuning seeds 100-139 (FoodFetch-TwoRows-v1: 0.0123 MPa; -v2: 0.06 MPa) fetched at three
+clamp angles under the three settings of check 2: how often the settings disagree on the
+outcome (rewards more than 0.5 apart), i.e. how often the plate's outcome is the numerics'
+rather than the action's.  This is how the -v2 id's softest level was checked.
 
 Each fetch's reward, fetch rate, largest LE in the clamp and hold, and the farthest piece's
 final distance across the clamp are written to the JSON, rewritten atomically after each
@@ -126,6 +133,56 @@ def spaced_tuning_plates(seeds: range = range(100, 140), across: float = 1e-3
     return out
 
 
+LEVEL_THETAS = (0.04, 0.05, 0.07)  # [rad] a light touch, the best constant, a deep squeeze
+SOFTEST_LEVEL = {"FoodFetch-TwoRows-v1": SOFT.young, "FoodFetch-TwoRows-v2": 0.06e6}  # [Pa]
+DISAGREE = 0.5  # rewards further apart than this across settings: the numerics decide
+
+
+def soft_levels(env_id: str, seeds: range = range(100, 140)) -> list[dict[str, Any]]:
+    """Check 4: each tuning plate of ``env_id``'s softest level at :data:`LEVEL_THETAS` under
+    every setting of :data:`SETTINGS`, with the largest reward difference between settings."""
+    envs = {name: gym.make(env_id, estimator="none", **kw) for name, kw in SETTINGS.items()}
+    out = []
+    for seed in seeds:
+        envs["default"].reset(seed=seed)
+        young = envs["default"].unwrapped.pieces[0].material.young
+        if young > SOFTEST_LEVEL[env_id]:
+            continue
+        for theta in LEVEL_THETAS:
+            by_setting = {name: fetch(env, theta, seed=seed) for name, env in envs.items()}
+            rewards = [f["reward"] for f in by_setting.values()]
+            out.append({"seed": seed, "young_mpa": young / 1e6, "theta": theta,
+                        "spread": round(max(rewards) - min(rewards), 4), **by_setting})
+            print(f"seed {seed} {young / 1e6:g} MPa @ {theta}: "
+                  + " ".join(f"{r:+.2f}" for r in rewards), flush=True)
+    return out
+
+
+def summarize_levels(rows: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Per level: fetches, plates, and the share whose settings disagree by > DISAGREE."""
+    out: dict[str, dict[str, Any]] = {}
+    for young in sorted({r["young_mpa"] for r in rows}):
+        at = [r for r in rows if r["young_mpa"] == young]
+        n_off = sum(r["spread"] > DISAGREE for r in at)
+        out[f"{young:g}"] = {"plates": len({r["seed"] for r in at}), "fetches": len(at),
+                             "settings_disagree": n_off,
+                             "share_disagree": round(n_off / len(at), 3),
+                             "mean_spread": round(sum(r["spread"] for r in at) / len(at), 3)}
+    return out
+
+
+def main_levels(env_id: str, out: Path) -> int:
+    data: dict[str, Any] = {"env_id": env_id, "thetas": list(LEVEL_THETAS),
+                            "settings": SETTINGS, "disagree_above": DISAGREE, "meta": meta()}
+    data["fetches"] = soft_levels(env_id)
+    data["summary"] = summarize_levels(data["fetches"])
+    write_json(out, data)
+    for level, s in data["summary"].items():
+        print(f"{level} MPa: {s['settings_disagree']} of {s['fetches']} fetches "
+              f"({s['plates']} plates) disagree across settings; mean spread {s['mean_spread']}")
+    return 0
+
+
 def main_spaced(out: Path) -> int:
     data: dict[str, Any] = {"env_id": ENV_ID, "spacing_across_m": 1e-3, "meta": meta(),
                             "plates": spaced_tuning_plates()}
@@ -141,8 +198,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=None)
     p.add_argument("--spaced", action="store_true",
                    help="only check 3: the very soft tuning plates with rows 1 mm apart")
+    p.add_argument("--levels", metavar="ID", choices=tuple(SOFTEST_LEVEL), default=None,
+                   help="only check 4: the softest tuning plates of ID under every setting")
     args = p.parse_args(argv)
     warnings.filterwarnings("ignore", category=UserWarning)  # clipping notes: in the JSON
+    if args.levels:
+        name = f"very_soft_plates_levels_{args.levels.rsplit('-', 1)[1]}.json"
+        return main_levels(args.levels, args.out or ROOT / "docs" / "data" / name)
     if args.spaced:
         return main_spaced(args.out or ROOT / "docs" / "data" / "very_soft_plates_spaced.json")
     args.out = args.out or ROOT / "docs" / "data" / "very_soft_plates.json"

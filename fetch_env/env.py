@@ -26,6 +26,7 @@ from fetch_env import clipping
 from fetch_env.controller import FetchAction, FetchSimulator, SimResult, fetch_hold_time_scale
 from fetch_env.env_scenes import (
     LAYOUTS,
+    RESOLVED_SAMPLING,
     SAMPLING,
     SCENE_PRESETS,
     SCENE_SPACES,
@@ -99,7 +100,11 @@ ESTIMATORS: tuple[str, ...] = ("model", "oracle", "none")
 VERSION_DEFAULTS: dict[str, dict[str, Any]] = {
     "v0": {"time_weight": 0.0, "damage": "worst", "scenes": "study"},
     "v1": {"time_weight": 0.1, "damage": "per_piece", "scenes": "wide"},
+    "v2": {"time_weight": 0.1, "damage": "per_piece", "scenes": "resolved"},
 }
+# The sampling table each scene space's docstring lists.
+_SPACE_SAMPLING: dict[str, dict[str, dict[str, Any]]] = {
+    "study": SAMPLING, "wide": WIDE_SAMPLING, "resolved": RESOLVED_SAMPLING}
 RESET_OPTIONS: tuple[str, ...] = ("preset", "pieces")
 _CACHE_SIZE = 8  # compiled scenes (and probe outcomes) kept per env, least recently used out
 
@@ -230,7 +235,7 @@ _COMMON_DOC = """
     | safe_log_strain | 0.34 | LE below which there is no penalty |
     | time_weight | {time_weight} | cost per second of clamp, hold and lift |
     | damage | "{damage}" | "worst" (worst piece) or "per_piece" (share-weighted sum) |
-    | scenes | "{scenes}" | scene space drawn at reset: "study" or "wide" (see Description) |
+    | scenes | "{scenes}" | scene space drawn at reset: "study", "wide", "resolved" (Description) |
     | fetch_by_mass | False | reward the fetched mass share instead of the count share |
     | hold | 0.5 | hold at theta_d before lifting [s] |
     | lift_at_settling | False | hold until the estimated moment settling time t_s instead |
@@ -282,6 +287,11 @@ _COMMON_DOC = """
     (``benchmarks/bench_quasi_static.py``).
 
     ## Version history
+    - v2 (0.2.0, TwoRows only): the v1 rewards on the "resolved" scene space
+      (``scenes="resolved"``): a two-row plate's softest level is 0.06 MPa instead of
+      0.0123 MPa, whose packed cubes the simulator does not resolve (their outcome changes
+      with the step and impratio, so a fifth of v1's scenes were a lottery no agent
+      controls).  Physics, probes, actions, observations and rewards are those of v1.
     - v1 (0.2.0): rewards and scenes that measure what a feeding robot must do, so that no
       fixed action is near the best on every scene: a time cost (``time_weight=0.1`` per
       second: a person waits for the bite), damage charged per piece by its share of the
@@ -315,7 +325,7 @@ def _docstring(title: str, description: str, layout: str, version: str = "v0") -
     """An id's docstring: its description and scene ranges, then the common reference with
     the version's defaults (``VERSION_DEFAULTS``) and its version history."""
     defaults = VERSION_DEFAULTS[version]
-    sampling = WIDE_SAMPLING if defaults["scenes"] == "wide" else SAMPLING
+    sampling = _SPACE_SAMPLING[defaults["scenes"]]
     ranges = "\n".join(f"    - {k}: {v}" for k, v in sampling[layout].items())
     body = _COMMON_DOC.format(
         **ACTION_RANGES, bound=OBS_BOUND, n_obs=len(OBS_NAMES), obs_table=_obs_table(),

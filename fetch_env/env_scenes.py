@@ -61,10 +61,17 @@ SAMPLING: dict[str, dict[str, Any]] = {
 # (fetch_env.food_space: 8-25 mm, 0.0123-5 MPa, g1 0.1-0.8, tau1 0.5-10 s, mu 0.1-0.8), so
 # that slippery, very soft, stiff, small and large pieces all occur and no single fixed
 # action is near the best on every scene (the study's scenes vary only the layout).
-SCENE_SPACES: tuple[str, ...] = ("study", "wide")
+SCENE_SPACES: tuple[str, ...] = ("study", "wide", "resolved")
 WIDE_ROW_SIZE_RANGE = (0.008, 0.014)  # [m] three 14 mm cubes still fit the 48 mm blades
 WIDE_TWO_ROWS_SIZE_RANGE = (0.008, 0.012)  # [m]
 WIDE_DICED_SIZE_RANGE = (0.007, 0.012)  # [m]
+# The "resolved" scene space (the -v2 ids): the wide space without the scenes the simulator
+# does not resolve.  0.0123 MPa cubes packed in a two-row grid (0.01 mm apart across) are
+# flung apart by squeezes of a few per cent in a way that changes with the time step and
+# impratio (docs/agents.md, "Very soft two-row plates are outside what the simulator
+# resolves"), so a two-row plate's softest level is 0.06 MPa, the softest a packed plate was
+# held and spared at smoothly.  Every other layout is drawn as in the wide space.
+RESOLVED_TWO_ROWS_YOUNG: tuple[float, ...] = (200e6, 40e6, 5e6, 0.15e6, 0.06e6)  # [Pa]
 
 WIDE_SAMPLING: dict[str, dict[str, Any]] = {
     "block": {"shape": SHAPES, "size_m": food_space.SIZE_RANGE,
@@ -79,6 +86,10 @@ WIDE_SAMPLING: dict[str, dict[str, Any]] = {
                  "young_pa": STUDY_LEVELS, "g1, tau1_s, mu": "as block"},
     "diced": {"n": DICED_N_RANGE, "size_m": WIDE_DICED_SIZE_RANGE, "material": STUDY_LEVELS,
               "shape": SHAPES, "mu": "one per scene, as block"},
+}
+RESOLVED_SAMPLING: dict[str, dict[str, Any]] = {
+    **WIDE_SAMPLING,
+    "two_rows": {**WIDE_SAMPLING["two_rows"], "young_pa": RESOLVED_TWO_ROWS_YOUNG},
 }
 
 
@@ -105,8 +116,11 @@ def sample_wide_material(rng: np.random.Generator, young: float | None = None) -
         mu=float(rng.uniform(*food_space.MU_RANGE)), plate_mu=PLATE_MU, name="sampled")
 
 
-def sample_wide_scene(layout: str, rng: np.random.Generator) -> tuple[Piece, ...]:
-    """Draw a scene of ``layout`` from the wide space (:data:`WIDE_SAMPLING`) with ``rng``."""
+def sample_wide_scene(layout: str, rng: np.random.Generator,
+                      two_rows_young: tuple[float, ...] | None = None) -> tuple[Piece, ...]:
+    """Draw a scene of ``layout`` from the wide space (:data:`WIDE_SAMPLING`) with ``rng``;
+    ``two_rows_young`` [Pa] replaces the study's five levels of a two-row plate (the
+    "resolved" space's :data:`RESOLVED_TWO_ROWS_YOUNG`)."""
     if layout == "block":
         shape = str(rng.choice(SHAPES))
         size = float(rng.uniform(*food_space.SIZE_RANGE))
@@ -120,7 +134,10 @@ def sample_wide_scene(layout: str, rng: np.random.Generator) -> tuple[Piece, ...
     if layout == "two_rows":
         n = int(rng.integers(TWO_ROWS_N_RANGE[0], TWO_ROWS_N_RANGE[1] + 1))
         size = float(rng.uniform(*WIDE_TWO_ROWS_SIZE_RANGE))
-        young = PRESETS[str(rng.choice(STUDY_LEVELS))].young
+        if two_rows_young is None:
+            young = PRESETS[str(rng.choice(STUDY_LEVELS))].young
+        else:
+            young = float(rng.choice(two_rows_young))
         return two_rows(material=sample_wide_material(rng, young), n=n, size=size,
                         spacing_along=TWO_ROWS_SPACING_ALONG,
                         spacing_across=TWO_ROWS_SPACING_ACROSS)
@@ -143,6 +160,8 @@ def sample_scene(layout: str, rng: np.random.Generator,
             f"one of {SCENE_SPACES}")
     if scenes == "wide":
         return sample_wide_scene(layout, rng)
+    if scenes == "resolved":
+        return sample_wide_scene(layout, rng, RESOLVED_TWO_ROWS_YOUNG)
     if scenes != "study":
         raise InvalidParameterError(f"scenes must be one of {SCENE_SPACES}, got {scenes!r}")
     if layout == "block":

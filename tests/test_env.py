@@ -10,6 +10,7 @@ the probes and the model estimator are exercised in their own tests.
 from __future__ import annotations
 
 import ast
+import importlib
 import inspect
 import math
 import pickle
@@ -102,13 +103,10 @@ def _doc_arguments(doc: str) -> dict[str, str]:
     return {name: default.strip() for name, default in rows if name != "argument"}
 
 
-@pytest.mark.parametrize("cls_name", ["FoodFetchEnv", *(e.split(":")[1]
-                                                      for e in fetch_env.ENV_IDS.values())])
-def test_documented_defaults_match_the_code(cls_name: str) -> None:
-    import fetch_env.env as env_module
-    import fetch_env.env_v1 as env_v1_module
-
-    cls = getattr(env_module, cls_name, None) or getattr(env_v1_module, cls_name)
+@pytest.mark.parametrize("entry", ["fetch_env.env:FoodFetchEnv", *fetch_env.ENV_IDS.values()])
+def test_documented_defaults_match_the_code(entry: str) -> None:
+    module, cls_name = entry.split(":")
+    cls = getattr(importlib.import_module(module), cls_name)
     documented = _doc_arguments(cls.__doc__)
     params = inspect.signature(FoodFetchEnv.__init__).parameters
     own = inspect.signature(cls.__init__).parameters  # an id's class sets its version's

@@ -19,6 +19,7 @@ import fetch_env
 from fetch_env import food_space
 from fetch_env.env import VERSION_DEFAULTS, physical_to_action
 from fetch_env.env_scenes import (
+    RESOLVED_TWO_ROWS_YOUNG,
     WIDE_DICED_SIZE_RANGE,
     WIDE_ROW_SIZE_RANGE,
     WIDE_TWO_ROWS_SIZE_RANGE,
@@ -164,6 +165,37 @@ def test_wide_multi_piece_scenes_vary_friction_and_stay_in_their_ranges(
     if layout != "row":
         levels = {PRESETS[n].young for n in STUDY_LEVELS}
         assert {p.material.young for s in scenes for p in s} == levels
+
+
+def test_every_v2_id_is_its_v1_id_on_the_resolved_scenes() -> None:
+    v2 = [i for i in fetch_env.ENV_IDS if i.endswith("-v2")]
+    assert v2 == ["FoodFetch-TwoRows-v2"]
+    for env_id in v2:
+        u = gym.make(env_id, estimator="none").unwrapped
+        v1 = gym.make(env_id.replace("-v2", "-v1"), estimator="none").unwrapped
+        assert (u.time_weight, u.damage, u.scenes) == tuple(VERSION_DEFAULTS["v2"].values())
+        assert (u.time_weight, u.damage, u.layout) == (v1.time_weight, v1.damage, v1.layout)
+        assert (u.scenes, v1.scenes) == ("resolved", "wide")
+        assert type(u).__doc__.startswith(env_id)
+
+
+def test_resolved_two_row_plates_leave_out_the_unresolved_level_only() -> None:
+    """The resolved space draws the two-row plates of the wide space with 0.06 MPa for the
+    study's 0.0123 MPa level (each level about a fifth of the plates), and every other
+    layout exactly as the wide space does (the same scenes from the same seed)."""
+    rng = np.random.default_rng(3)
+    scenes = [sample_scene("two_rows", rng, "resolved") for _ in range(400)]
+    youngs = [s[0].material.young for s in scenes]
+    assert set(youngs) == set(RESOLVED_TWO_ROWS_YOUNG)
+    assert min(RESOLVED_TWO_ROWS_YOUNG) == 0.06e6
+    share = {y: youngs.count(y) / len(youngs) for y in RESOLVED_TWO_ROWS_YOUNG}
+    assert all(0.15 <= v <= 0.25 for v in share.values()), share  # 0.2 +- 5 sd of 400 draws
+    for s in scenes:
+        assert len({p.material.young for p in s}) == 1 and len({p.material.mu for p in s}) == 1
+    _covers([s[0].material.mu for s in scenes], *food_space.MU_RANGE)
+    for layout in ("block", "row", "diced"):
+        assert sample_scene(layout, np.random.default_rng(9), "resolved") == sample_scene(
+            layout, np.random.default_rng(9), "wide")
 
 
 def test_wide_scenes_come_from_the_seed_alone() -> None:
