@@ -159,15 +159,17 @@ def soft_levels(env_id: str, seeds: range = range(100, 140)) -> list[dict[str, A
 
 
 def summarize_levels(rows: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
-    """Per level: fetches, plates, and the share whose settings disagree by > DISAGREE."""
+    """Per clamp angle: fetches, how many settings disagree by > DISAGREE, the mean spread,
+    and each setting's mean reward."""
     out: dict[str, dict[str, Any]] = {}
-    for young in sorted({r["young_mpa"] for r in rows}):
-        at = [r for r in rows if r["young_mpa"] == young]
+    for theta in sorted({r["theta"] for r in rows}):
+        at = [r for r in rows if r["theta"] == theta]
         n_off = sum(r["spread"] > DISAGREE for r in at)
-        out[f"{young:g}"] = {"plates": len({r["seed"] for r in at}), "fetches": len(at),
-                             "settings_disagree": n_off,
-                             "share_disagree": round(n_off / len(at), 3),
-                             "mean_spread": round(sum(r["spread"] for r in at) / len(at), 3)}
+        out[f"{theta:g}"] = {
+            "fetches": len(at), "settings_disagree": n_off,
+            "mean_spread": round(sum(r["spread"] for r in at) / len(at), 3),
+            "mean_reward": {name: round(sum(r[name]["reward"] for r in at) / len(at), 3)
+                            for name in SETTINGS}}
     return out
 
 
@@ -177,9 +179,9 @@ def main_levels(env_id: str, out: Path) -> int:
     data["fetches"] = soft_levels(env_id)
     data["summary"] = summarize_levels(data["fetches"])
     write_json(out, data)
-    for level, s in data["summary"].items():
-        print(f"{level} MPa: {s['settings_disagree']} of {s['fetches']} fetches "
-              f"({s['plates']} plates) disagree across settings; mean spread {s['mean_spread']}")
+    for theta, s in data["summary"].items():
+        print(f"{theta} rad: {s['settings_disagree']} of {s['fetches']} plates disagree across "
+              f"settings; mean spread {s['mean_spread']}; mean rewards {s['mean_reward']}")
     return 0
 
 
