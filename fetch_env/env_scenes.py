@@ -69,8 +69,10 @@ WIDE_DICED_SIZE_RANGE = (0.007, 0.012)  # [m]
 # does not resolve.  0.0123 MPa cubes packed in a two-row grid (0.01 mm apart across) are
 # flung apart by squeezes of a few per cent in a way that changes with the time step and
 # impratio (docs/agents.md, "Very soft two-row plates are outside what the simulator
-# resolves"), so a two-row plate's softest level is 0.06 MPa, the softest a packed plate was
-# held and spared at smoothly.  Every other layout is drawn as in the wide space.
+# resolves"), so a two-row plate's softest level is 0.06 MPa: at the light touch that holds
+# it (0.04 and 0.05 rad) its outcome agrees across the step and impratio on 14 and 12 of 15
+# tuning plates, 0.0123 MPa's on 7 and 4 (benchmarks/very_soft_plates.py --levels).  Every
+# other layout is drawn as in the wide space.
 RESOLVED_TWO_ROWS_YOUNG: tuple[float, ...] = (200e6, 40e6, 5e6, 0.15e6, 0.06e6)  # [Pa]
 
 WIDE_SAMPLING: dict[str, dict[str, Any]] = {
