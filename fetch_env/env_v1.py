@@ -51,7 +51,8 @@ class FoodFetchTwoRowsV1Env(FoodFetchEnv):
         "and friction from the food space: soft rows are crushed by a firm clamp.  Known "
         "limit: 0.0123 MPa cubes packed this close are flung apart at squeezes of 5-15 % in "
         "a way that changes with the step, so one scene in five is a lottery for "
-        "any agent (docs/agents.md, 'How much choosing the angle is worth').",
+        "any agent (docs/agents.md, 'How much choosing the angle is worth'); "
+        "FoodFetch-TwoRows-v2 leaves that level out.",
         "two_rows", "v1")
 
     __init__ = _with_defaults("two_rows", "v1")
