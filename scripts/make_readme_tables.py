@@ -99,18 +99,19 @@ def headroom_table(data: dict[str, Any]) -> str:
     seed = re.search(r"--seed (\d+)", first["command"])
     parts = {env_id: _machine_parts(r["meta"]["machine"]) for env_id, r in results.items()}
     cores = parts[next(iter(results))][0]
-    by_run: dict[tuple[str, str], list[str]] = {}
+    by_cpu: dict[str, dict[str, list[str]]] = {}
     for env_id, r in results.items():
-        by_run.setdefault((r["meta"]["commit"], parts[env_id][1]), []).append(
+        by_cpu.setdefault(parts[env_id][1], {}).setdefault(r["meta"]["commit"], []).append(
             env_id.removeprefix("FoodFetch-"))
-    runs = ", ".join(f"{' and '.join(ids)} at {commit} ({cpu})"
-                     for (commit, cpu), ids in by_run.items())
+    runs = "; ".join(cpu + ": " + ", ".join(f"{' and '.join(ids)} at {commit}"
+                                            for commit, ids in commits.items())
+                     for cpu, commits in by_cpu.items())
     return ("\n".join(rows) + f"\n\nMean reward [95 %], {n} scenes per id from seed "
             f"{seed.group(1) if seed else '?'} (never tuned on); regret: search less "
             f"model-based, paired; orderings: search beats study by >= {data['margin']:g}, "
             "model-based beats random and study, intervals apart" + _shortfalls(results)
             + f". {cores}; {runs}: `python benchmarks/headroom.py --ids ID "
-            "--episodes 200 --seed 80000 --workers 2`. Run times, training budgets: "
+            "--episodes 200 --seed 80000 --workers 2`. Run times, budgets: "
             "[docs/agents.md](docs/agents.md#headroom-on-the-benchmark-ids).")
 
 
@@ -171,8 +172,11 @@ def soak_table(data: dict[str, Any]) -> str:
         worst = max(growth, key=lambda k, i=i: growth[k][i])
         rows.append(f"| {what} | {worst} | {growth[worst][i]:+.1f} {unit} | {limit or '-'} |")
     counts = sorted({run["summary"]["episodes"] for run in data["ids"].values()})
-    machines = sorted({_machine(run.get("machine", data["machine"]["machine"]))
-                       for run in data["ids"].values()})
+    parts = sorted({_machine_parts(run.get("machine", data["machine"]["machine"]))
+                    for run in data["ids"].values()})
+    cores = sorted({c for c, _ in parts})
+    cpus = {c: ", ".join(cpu for cc, cpu in parts if cc == c and cpu) for c in cores}
+    machines = [f"{c} ({cpus[c]})" if cpus[c] else c for c in cores]
     return ("\n".join(rows) + f"\n\n{len(growth)} ids, {'-'.join(map(str, counts))} episodes "
             "each in one process; medians of the second and last tenths; the early episodes "
             f"run again last; {' and '.join(machines)}: `python benchmarks/soak.py --env ID` "
