@@ -3,8 +3,10 @@
     python scripts/add_trained_agent.py out/sac_FoodFetch-Block-v1 --algo sac
 
 reads what ``scripts/train_agent.sh`` left in the run folder (``heldout.json``: the model on
-the 200 headroom scenes; ``config.yml``: the training budget, the total when resumed;
-``train_wall.txt``: the training's wall time in seconds, the total of every part) and
+the 200 headroom scenes; ``model.zip``: the fetches it was trained on, which differ from the
+budget where a run was stopped early or a PPO run ended on a whole rollout; ``config.yml``:
+the training budget, the total when resumed; ``train_wall.txt``: the training's wall time in
+seconds, the total of every part) and
 stores the agent's summary under ``results[ID]["agents"][ALGO]`` and how it was trained
 under ``results[ID]["trained"][ALGO]``.  Refused unless the evaluation used the same
 scenes (environment id, seed, episodes, env kwargs) as the id's headroom run.
@@ -16,6 +18,7 @@ import argparse
 import json
 import re
 import sys
+import zipfile
 from pathlib import Path
 
 import yaml
@@ -46,6 +49,13 @@ def _paired(agent_log: Path, baseline_log: Path) -> dict[str, object]:
     return paired_difference([a[s] for s in seeds], [b[s] for s in seeds])
 
 
+def trained_timesteps(model: Path) -> int:
+    """The environment steps (here fetches) a Stable-Baselines3 model was trained on, from
+    the ``num_timesteps`` its zip records."""
+    with zipfile.ZipFile(model) as z:
+        return int(json.loads(z.read("data"))["num_timesteps"])
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("run", type=Path, help="the folder scripts/train_agent.sh wrote")
@@ -72,7 +82,8 @@ def main() -> int:
     base["agents"][args.algo] = summary
     wall = (args.run / "train_wall.txt").read_text().strip()
     base.setdefault("trained", {})[args.algo] = {
-        "timesteps": config.get("timesteps") or config.get("hyperparams", {}).get(
+        "timesteps": trained_timesteps(args.run / "model.zip"),
+        "timesteps_budget": config.get("timesteps") or config.get("hyperparams", {}).get(
             "n_timesteps"),
         "train_wall_s": int(wall), "command": config.get("command"),
         "versions": config.get("versions"), "machine": heldout.get("machine"),

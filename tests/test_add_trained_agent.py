@@ -37,3 +37,13 @@ def test_paired_difference_uses_the_common_scenes(tmp_path: Path) -> None:
                                        for s in (2, 3)])
     out = script._paired(agent, base)
     assert out["n"] == 2 and out["mean"] == pytest.approx(0.5, abs=1e-12)
+
+
+def test_the_fetches_trained_come_from_the_model_not_the_budget(tmp_path: Path) -> None:
+    """A run stopped at step 1886 of a 2000-step budget reports 1886 (SB3's zip layout)."""
+    import zipfile
+
+    model = tmp_path / "model.zip"
+    with zipfile.ZipFile(model, "w") as z:
+        z.writestr("data", json.dumps({"num_timesteps": 1886, "n_envs": 1}))
+    assert script.trained_timesteps(model) == 1886
