@@ -172,11 +172,12 @@ def soak_table(data: dict[str, Any]) -> str:
         worst = max(growth, key=lambda k, i=i: growth[k][i])
         rows.append(f"| {what} | {worst} | {growth[worst][i]:+.1f} {unit} | {limit or '-'} |")
     counts = sorted({run["summary"]["episodes"] for run in data["ids"].values()})
-    parts = sorted({_machine_parts(run.get("machine", data["machine"]["machine"]))
-                    for run in data["ids"].values()})
-    cores = sorted({c for c, _ in parts})
-    cpus = {c: ", ".join(cpu for cc, cpu in parts if cc == c and cpu) for c in cores}
-    machines = [f"{c} ({cpus[c]})" if cpus[c] else c for c in cores]
+    cpus_by_cores: dict[str, set[str]] = {}
+    for run in data["ids"].values():
+        cores, cpu = _machine_parts(run.get("machine", data["machine"]["machine"]))
+        cpus_by_cores.setdefault(cores, set()).update([cpu] if cpu else [])
+    machines = [f"{c} ({', '.join(sorted(cpus))})" if cpus else c
+                for c, cpus in sorted(cpus_by_cores.items())]
     return ("\n".join(rows) + f"\n\n{len(growth)} ids, {'-'.join(map(str, counts))} episodes "
             "each in one process; medians of the second and last tenths; the early episodes "
             f"run again last; {' and '.join(machines)}: `python benchmarks/soak.py --env ID` "

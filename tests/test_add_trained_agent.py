@@ -40,10 +40,10 @@ def test_paired_difference_uses_the_common_scenes(tmp_path: Path) -> None:
 
 
 def test_the_fetches_trained_come_from_the_model_not_the_budget(tmp_path: Path) -> None:
-    """A run stopped at step 1886 of a 2000-step budget reports 1886 (SB3's zip layout)."""
-    import zipfile
-
-    model = tmp_path / "model.zip"
-    with zipfile.ZipFile(model, "w") as z:
-        z.writestr("data", json.dumps({"num_timesteps": 1886, "n_envs": 1}))
-    assert script.trained_timesteps(model) == 1886
+    """A run stopped at step 1886 of a 2000-step budget reports 1886, read from a model
+    Stable-Baselines3 itself saved."""
+    sb3 = pytest.importorskip("stable_baselines3")
+    model = sb3.PPO("MlpPolicy", "Pendulum-v1", n_steps=64, batch_size=64, seed=0)
+    model.num_timesteps = 1886
+    model.save(tmp_path / "model.zip")
+    assert script.trained_timesteps(tmp_path / "model.zip") == 1886
