@@ -63,6 +63,7 @@ from fetch_env.probes import (
     PROBE_CALIBRATIONS,
     PROBE_PRESETS,
     PROBE_SYSTEMATIC_SD,
+    ProbeConfig,
     ProbeOutcome,
     apply_calibration,
     run_probes,
@@ -84,11 +85,13 @@ def foods_of(name: str, n: int) -> list[Food]:
     return corner_foods()[:n]
 
 
-def measure(food: Food, preset: str, noise: float, seed: int, calibrate: bool = True
-            ) -> dict[str, Any]:
+def measure(food: Food, preset: str, noise: float, seed: int, calibrate: bool = True,
+            config: ProbeConfig | None = None) -> dict[str, Any]:
     """Probe one food and hold the estimates to the truth (never raises); ``calibrate``
-    applies the preset's shipped calibration, where it has one."""
-    config = PROBE_PRESETS[preset]
+    applies the preset's shipped calibration, where it has one; ``config`` replaces the
+    preset's probe settings (then leave ``calibrate`` off: a calibration holds only for the
+    settings it was fitted for)."""
+    config = PROBE_PRESETS[preset] if config is None else config
     piece = food.piece()
     calibration = PROBE_CALIBRATIONS.get(preset) if calibrate else None
     t0 = time.perf_counter()

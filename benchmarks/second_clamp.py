@@ -1,0 +1,173 @@
+"""A second and third clamp as a check: does their disagreement flag the probe's misses?
+
+The ``reliable`` flag must be False on every food whose g1, tau1 or mu error exceeds 5 %,
+and True on most foods measured within 2 %.  The calibrated error model's per-food sd does
+not separate the two (``docs/estimator_validation.md``): what the calibration leaves is a
+per-food bias that each trace shows only roughly.  A second, independent reading is the
+other way an instrument checks itself: clamp the same food again at another squeeze or
+speed, calibrate each clamp on the tuning foods as the shipped probe is, and read the
+spread of their calibrated estimates.  Where the bias depends on the clamp, the readings
+disagree on the foods they miss.
+
+This script measures that on the tuning foods only (``TUNING_SEED``; the reporting foods
+stay untouched): the ``measure`` probe, and the same probe at strain 0.10 (instead of
+0.06) and at omega 0.3 rad/s (instead of 0.1), each uncalibrated, then each calibrated by
+8-fold cross-validation (``validate_estimators.cross_validate``: every food's estimate from
+a calibration fitted without it).  It reports, for every combination of clamps, the median
+and 95th percentile of |error| of the mean of their calibrated log-estimates of g1 and
+tau1, the rank correlation of that error with the clamps' spread, and the best flag the
+spread can give: the share of foods within 2 % that a spread threshold calls reliable while
+calling no 5 % miss reliable.
+
+    python benchmarks/second_clamp.py --n 256 --workers 2 \\
+        --base docs/data/validation/tuning_measure_uncal_noise0.json
+
+Each clamp's records stream to ``--work`` (a stopped run continues from them); the summary
+is written to ``--out`` (default ``docs/data/validation/second_clamp.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import itertools
+import json
+import math
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.stats import spearmanr
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import validate_estimators as ve
+
+from fetch_env.food_space import TUNING_SEED, Food, sample_foods
+from fetch_env.probes import PROBE_PRESETS, ProbeConfig
+
+BASE = PROBE_PRESETS["measure"]
+VARIANTS: dict[str, ProbeConfig] = {
+    "strain 0.10": dataclasses.replace(BASE, strain=0.10),
+    "omega 0.3": dataclasses.replace(BASE, omega=0.3),
+}
+TARGETS = ("g1", "tau1")
+
+
+def _measure(args: tuple[Food, ProbeConfig]) -> dict[str, Any]:
+    food, config = args
+    return ve.measure(food, "measure", 0.0, 7919 * food.index + 1, calibrate=False,
+                      config=config)
+
+
+def run_variant(name: str, config: ProbeConfig, foods: list[Food], work: Path,
+                workers: int) -> list[dict[str, Any]]:
+    """Uncalibrated records of one clamp on ``foods``, streamed to ``work`` and resumed."""
+    path = work / (name.replace(" ", "_") + ".jsonl")
+    done = ve._done_indices(path)
+    todo = [f for f in foods if f.index not in done]
+    with ProcessPoolExecutor(workers) as pool, path.open("a") as log:
+        for rec in pool.map(_measure, [(f, config) for f in todo]):
+            done[int(rec["food"]["index"])] = rec
+            log.write(json.dumps(rec, default=float) + "\n")
+            log.flush()
+    return [done[f.index] for f in foods]
+
+
+def _log_errors(held: dict[str, dict[int, dict[str, Any]]], clamps: tuple[str, ...],
+                index: list[int], target: str) -> np.ndarray:
+    """log(estimate / truth) per clamp (rows) and food (columns); NaN where one failed."""
+    out = np.full((len(clamps), len(index)), math.nan)
+    for i, c in enumerate(clamps):
+        for j, k in enumerate(index):
+            r = held[c].get(k)
+            v = r["estimate"][target] if r else math.nan
+            if r and math.isfinite(v) and v > 0:
+                out[i, j] = math.log(v / r["truth"][target])
+    return out
+
+
+def combination(held: dict[str, dict[int, dict[str, Any]]], clamps: tuple[str, ...],
+                index: list[int]) -> dict[str, Any]:
+    """Accuracy of the clamps' mean, and how well their spread flags a miss."""
+    errs = {t: _log_errors(held, clamps, index, t) for t in TARGETS}
+    ok = np.all([np.isfinite(e).all(axis=0) for e in errs.values()], axis=0)
+    out: dict[str, Any] = {"clamps": list(clamps), "foods": int(ok.sum())}
+    worst = np.zeros(int(ok.sum()))
+    spread = np.zeros(int(ok.sum()))
+    for t, e in errs.items():
+        mean = np.abs(e[:, ok].mean(axis=0))
+        out[t] = {"median": float(np.median(mean)), "p95": float(np.percentile(mean, 95))}
+        worst = np.maximum(worst, mean)
+        if len(clamps) > 1:
+            s = np.ptp(e[:, ok], axis=0)
+            ranked = np.ptp(s) > 0 and np.ptp(mean) > 0  # else no rank correlation exists
+            out[t]["spearman_error_spread"] = float(spearmanr(mean, s)[0]) if ranked else math.nan
+            spread = np.maximum(spread, s)
+    if len(clamps) > 1:
+        bad, good = spread[worst > math.log(1.05)], spread[worst < math.log(1.02)]
+        out["flag"] = {"n_over_5pct": int(bad.size), "n_under_2pct": int(good.size),
+                       "under_2pct_passed": int(np.sum(good < bad.min())) if bad.size
+                       else int(good.size),
+                       "spread_threshold": float(bad.min()) if bad.size else math.inf}
+    return out
+
+
+def table(results: list[dict[str, Any]]) -> str:
+    rows = ["| clamps | g1 median / 95th | tau1 median / 95th | spread vs error (g1, tau1) "
+            "| within 2 % called reliable, no 5 % miss |", "|---|---|---|---|---|"]
+    for r in results:
+        acc = [f"{100 * r[t]['median']:.2f} / {100 * r[t]['p95']:.1f} %" for t in TARGETS]
+        if "flag" in r:
+            f = r["flag"]
+            rho = ", ".join(f"{r[t]['spearman_error_spread']:.2f}" for t in TARGETS)
+            flag = f"{f['under_2pct_passed']} of {f['n_under_2pct']}"
+        else:
+            rho = flag = "-"
+        rows.append(f"| {' + '.join(r['clamps'])} | {acc[0]} | {acc[1]} | {rho} | {flag} |")
+    return "\n".join(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--n", type=int, default=256, help="tuning foods (default 256)")
+    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--base", type=Path, required=True, metavar="JSON",
+                   help="the measure probe's uncalibrated tuning run (validate_estimators.py "
+                   "--set tuning --no-calibration --noise 0) on the same foods")
+    p.add_argument("--work", type=Path, default=Path("out/second_clamp"))
+    p.add_argument("--out", type=Path, default=Path("docs/data/validation/second_clamp.json"))
+    args = p.parse_args(argv)
+    if not 16 <= args.n <= 4096 or args.workers < 1:
+        p.error(f"--n {args.n} must be in [16, 4096] and --workers {args.workers} >= 1")
+    base = json.loads(args.base.read_text())
+    if (base["meta"]["set"], base["meta"]["n"], base["meta"]["noise"]) != ("tuning", args.n, 0) \
+            or base["meta"].get("calibration") is not None or base["meta"]["preset"] != "measure":
+        p.error(f"--base {args.base}: not an uncalibrated, noiseless tuning run of the "
+                f"measure preset on {args.n} foods")
+    args.work.mkdir(parents=True, exist_ok=True)
+    foods = sample_foods(args.n, TUNING_SEED)
+    runs = {"measure": base["records"]}
+    for name, config in VARIANTS.items():
+        runs[name] = run_variant(name, config, foods, args.work, args.workers)
+    held = {name: {int(r["food"]["index"]): r
+                   for r in ve.cross_validate(recs, [recs])[0]["records"]}
+            for name, recs in runs.items()}
+    index = [f.index for f in foods]
+    results = [combination(held, clamps, index) for n in range(1, len(runs) + 1)
+               for clamps in itertools.combinations(runs, n)]
+    summary = {"meta": {"set": "tuning", "seed": TUNING_SEED, "n": args.n,
+                        "variants": {k: dataclasses.asdict(v) for k, v in VARIANTS.items()},
+                        "command": "python benchmarks/second_clamp.py "
+                        + " ".join(argv or sys.argv[1:])},
+               "results": results}
+    ve._write_atomic(args.out, json.dumps(summary, indent=1, default=float) + "\n")
+    print(table(results))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
