@@ -227,12 +227,19 @@ def main(argv: list[str] | None = None) -> int:
     if unknown or args.episodes < 20 or args.flush < 1:
         p.error(f"unknown id(s) {unknown}" if unknown else "--episodes >= 20, --flush >= 1")
     data = load_existing(args.out)
-    data.update(machine=machine(), limits={"rss_growth_mib": RSS_LIMIT_MIB,
-                                           "episode_time_change": TIME_LIMIT},
-                windows={"early": list(EARLY), "late": list(LATE)},
-                command="python " + " ".join(["benchmarks/soak.py", *sys.argv[1:]]))
+    here = machine()
+    command = "python " + " ".join(["benchmarks/soak.py",
+                                    *(sys.argv[1:] if argv is None else argv)])
+    # ids kept from an earlier run keep the machine and command that measured them
+    for run in data["ids"].values():
+        run.setdefault("machine", data.get("machine", {}).get("machine", "unknown"))
+        run.setdefault("command", data.get("command", "unknown"))
+    data.update(machine=here, limits={"rss_growth_mib": RSS_LIMIT_MIB,
+                                      "episode_time_change": TIME_LIMIT},
+                windows={"early": list(EARLY), "late": list(LATE)}, command=command)
     for env_id in ids:
-        record = data["ids"][env_id] = {"malloc_trim": args.malloc_trim}
+        record = data["ids"][env_id] = {"malloc_trim": args.malloc_trim,
+                                        "machine": here["machine"], "command": command}
         soak(env_id, args.episodes, args.seed, record, args.out, data, args.flush,
              args.malloc_trim)
         s = record["summary"]
