@@ -35,7 +35,6 @@ import itertools
 import json
 import math
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -63,24 +62,17 @@ COMBINED: tuple[str, ...] = ("measure", "strain 0.10", "omega 0.3")
 TARGETS = ("g1", "tau1")
 
 
-def _measure(args: tuple[Food, ProbeConfig]) -> dict[str, Any]:
-    food, config = args
-    return ve.measure(food, "measure", 0.0, 7919 * food.index + 1, calibrate=False,
-                      config=config)
-
-
 def run_variant(name: str, config: ProbeConfig, foods: list[Food], work: Path,
-                workers: int) -> list[dict[str, Any]]:
-    """Uncalibrated records of one clamp on ``foods``, streamed to ``work`` and resumed."""
+                workers: int) -> tuple[list[dict[str, Any]], str]:
+    """Uncalibrated records of one clamp on ``foods``, streamed to ``work`` and resumed by
+    the harness's own runner; and why it stopped ("" when every food finished)."""
     path = work / (name.replace(" ", "_") + ".jsonl")
     done = ve._done_indices(path)
+    records = list(done.values())
     todo = [f for f in foods if f.index not in done]
-    with ProcessPoolExecutor(workers) as pool, path.open("a") as log:
-        for rec in pool.map(_measure, [(f, config) for f in todo]):
-            done[int(rec["food"]["index"])] = rec
-            log.write(json.dumps(rec, default=float) + "\n")
-            log.flush()
-    return [done[f.index] for f in foods]
+    run = argparse.Namespace(preset="measure", noise=0.0, workers=workers)
+    stopped = ve._run_foods(todo, run, False, path, records, config) if todo else ""
+    return records, stopped
 
 
 def _log_errors(held: dict[str, dict[int, dict[str, Any]]], clamps: tuple[str, ...],
@@ -164,7 +156,15 @@ def main(argv: list[str] | None = None) -> int:
     foods = sample_foods(args.n, TUNING_SEED)
     runs = {"measure": base["records"]}
     for name, config in VARIANTS.items():
-        runs[name] = run_variant(name, config, foods, args.work, args.workers)
+        runs[name], stopped = run_variant(name, config, foods, args.work, args.workers)
+        if stopped:
+            print(f"second_clamp: {stopped}; {len(runs[name])} of {args.n} foods of "
+                  f"{name!r} kept in {args.work} (rerun the same command to finish)",
+                  file=sys.stderr)
+            return 130 if "interrupted" in stopped else 1
+    # in food order, so that the fits' sums, and so their last bits, do not depend on the
+    # order in which the workers finished
+    runs = {k: sorted(v, key=lambda r: int(r["food"]["index"])) for k, v in runs.items()}
     held = {name: {int(r["food"]["index"]): r
                    for r in ve.cross_validate(recs, [recs])[0]["records"]}
             for name, recs in runs.items()}

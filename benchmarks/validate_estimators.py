@@ -501,17 +501,18 @@ def _raise_interrupt(signum: int, _frame: Any) -> None:
 
 
 def _run_foods(foods: list[Food], args: argparse.Namespace, calibrated: bool, jsonl: Path,
-               records: list[dict[str, Any]]) -> str:
-    """Measure ``foods`` on a process pool, appending each record to ``jsonl`` as it
-    finishes.  Returns "" when all finished, else why it stopped: Ctrl-C, SIGTERM or SIGHUP
-    (handled alike), or a worker that died (the pool breaks instead of hanging)."""
+               records: list[dict[str, Any]], config: ProbeConfig | None = None) -> str:
+    """Measure ``foods`` on a process pool (``config`` replacing the preset's probe settings,
+    as in :func:`measure`), appending each record to ``jsonl`` as it finishes.  Returns ""
+    when all finished, else why it stopped: Ctrl-C, SIGTERM or SIGHUP (handled alike), or a
+    worker that died (the pool breaks instead of hanging)."""
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, _raise_interrupt)
     pool = ProcessPoolExecutor(args.workers, initializer=_worker_signals)
     try:
         with jsonl.open("a") as log:
             futures = [pool.submit(measure, f, args.preset, args.noise, 7919 * f.index + 1,
-                                   calibrated) for f in foods]
+                                   calibrated, config) for f in foods]
             for i, fut in enumerate(as_completed(futures), 1):
                 rec = fut.result()
                 records.append(rec)

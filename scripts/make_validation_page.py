@@ -16,6 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.bench_env_estimates import table as env_table  # noqa: E402
+from benchmarks.second_clamp import COMBINED  # noqa: E402
 from benchmarks.second_clamp import table as second_clamp_table  # noqa: E402
 from benchmarks.validate_estimators import cross_validate, table  # noqa: E402
 
@@ -167,7 +168,7 @@ def second_clamp_section() -> str:
             f"({' + '.join(best['clamps'])}) calls {flag['under_2pct_passed']} of "
             f"{flag['n_under_2pct']} good foods reliable where 90 % are wanted, and the three "
             f"clamps together move tau1's 95th percentile from {100 * one['tau1']['p95']:.1f} "
-            f"to {100 * results[tuple(results)[-1]]['tau1']['p95']:.1f} % at three times the "
+            f"to {100 * results[COMBINED]['tau1']['p95']:.1f} % at three times the "
             "probe's cost, far from the 3 % bar.  A longer hold does not help either: at 30 "
             f"and 40 s tau1's median is {100 * hold30['tau1']['median']:.2f} and "
             f"{100 * hold40['tau1']['median']:.2f} % and its 95th percentile "
