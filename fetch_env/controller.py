@@ -5,7 +5,8 @@ half-spoons at the open pose, then follows a prescribed profile of the hinge ang
 (the study's angle: 0 at the open pose, growing as the blades close) and the stage height:
 
 * ``fetch``: clamp at constant omega to theta_d, hold, lift at constant speed by
-  ``lift_height``, hold in the air.
+  ``lift_height``, hold in the air (rolled by ``tilt`` toward the mouth where it is set:
+  :mod:`fetch_env.carry`).
 * ``relaxation``: clamp at omega to theta_d, hold (long) while the moment relaxes.
 * ``slip``: clamp to theta_d, hold briefly, then move the closed pair ``slide_distance``
   toward the plate over ``slide_time`` so the plate holds the food and the blades slide.
@@ -23,6 +24,7 @@ from typing import Any, Literal
 import mujoco
 import numpy as np
 
+from fetch_env.carry import TILT_RAMP, TiltLoad, tilt_angles
 from fetch_env.errors import InvalidParameterError, SimulationDivergedError, require, require_finite
 from fetch_env.layouts import Piece
 from fetch_env.metrics import residual_plastic_strain
@@ -73,6 +75,10 @@ class FetchAction:
         settle: time the pieces settle on the plate before the clamp [s].
         slide_distance: induced-slip travel toward the plate [m].
         slide_time: duration of the induced slip [s].
+        tilt: roll of the closed pair about the clamp direction in the air hold (fetch),
+            which tips the bite along the hinge axis where only friction holds it [rad]
+            (:mod:`fetch_env.carry`); 0: none.
+        tilt_ramp: time the roll takes, from the start of the air hold [s].
     """
 
     theta_d: float = 0.045
@@ -84,6 +90,8 @@ class FetchAction:
     settle: float = 0.3
     slide_distance: float = 0.005
     slide_time: float = 10.0
+    tilt: float = 0.0
+    tilt_ramp: float = TILT_RAMP
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -101,9 +109,14 @@ class FetchAction:
         require(0 < self.slide_distance <= 0.02, "slide_distance", self.slide_distance,
                 "in (0, 0.02] m")
         require(0 < self.slide_time <= 120, "slide_time", self.slide_time, "in (0, 120] s")
+        require(0 <= self.tilt <= 0.5 * math.pi, "tilt", self.tilt, "in [0, pi/2] rad")
+        require(0 < self.tilt_ramp <= 10, "tilt_ramp", self.tilt_ramp, "in (0, 10] s")
 
     def to_dict(self) -> dict[str, float]:
-        return dataclasses.asdict(self)
+        out = dataclasses.asdict(self)
+        if not self.tilt:  # a fetch without the roll is written as before the roll existed
+            del out["tilt"], out["tilt_ramp"]
+        return out
 
 
 @dataclass(frozen=True)
@@ -197,6 +210,7 @@ class Profile:
     scaled: np.ndarray  # bool: the steps of the time-scaled holds
     t_clamp_start: float
     i_scaled: int | None = None  # the step the first time-scaled hold starts at (None: none)
+    tilt: np.ndarray | None = None  # [rad] the pair's roll at each step (None: no roll)
 
 
 def make_profile(experiment: str, action: FetchAction, dt: float,
@@ -255,7 +269,19 @@ def make_profile(experiment: str, action: FetchAction, dt: float,
         step_time[first:first + steps.size] = steps
         in_scaled[first:first + steps.size] = True
     return Profile(theta, theta_dot, lift, lift_dot, phase, step_time, in_scaled,
-                   t_clamp_start=action.settle, i_scaled=scaled[0][0] if scaled else None)
+                   t_clamp_start=action.settle, i_scaled=scaled[0][0] if scaled else None,
+                   tilt=_tilt_profile(experiment, action, phase, step_time))
+
+
+def _tilt_profile(experiment: str, action: FetchAction, phase: np.ndarray,
+                  step_time: np.ndarray) -> np.ndarray | None:
+    """The roll at the start of every step: 0 until the air hold, then ramped to
+    ``action.tilt`` over ``action.tilt_ramp`` physical seconds (None: no roll)."""
+    if experiment != "fetch" or not action.tilt:
+        return None
+    in_air = np.where(phase == PHASE_CODE["air"], step_time, 0.0)
+    elapsed = np.cumsum(in_air) - in_air
+    return np.where(in_air > 0, tilt_angles(elapsed, action.tilt, action.tilt_ramp), 0.0)
 
 
 def _add_hold(segments: list[tuple[str, float, float, float]],
@@ -472,8 +498,10 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
 
     wall = time.perf_counter()
     try:
+        tilt = (None if profile.tilt is None
+                else TiltLoad(scene, profile.tilt, 0.5 * action.lift_height))
         stall_cap, end_stop = _step_through(scene, d, profile, schedule, prony, recorder, rec,
-                                            observer, fail)
+                                            observer, fail, tilt)
     finally:
         prony.restore()  # the model's compiled rest shape, for the next run
     readings, rec["blade_overlap"], le_trace = recorder.finish()  # (timed: part of the run)
@@ -490,6 +518,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     rec["max_log_strain"] = le_trace.max(axis=1)
     masses = np.array([p.mass for p in scene.pieces])
     q_open, n, i_scaled = scene.pose.theta_open, len(profile.theta), schedule.i_scaled
+    loaded = {} if tilt is None else {"tilt_loaded": np.flatnonzero(tilt.held).tolist()}
     return SimResult(
         experiment=experiment, action=action, scene=scene.describe(), traces=rec,
         pieces=pieces_out, fetch_rate=float(fetched.mean()),
@@ -504,7 +533,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
                # the clamp angle the motor was told in the end: theta_d, or less where the
                # end stop or a stall stopped it
                "theta_d_applied": float(min(action.theta_d, end_stop, stall_cap - q_open)),
-               "passed_through": np.flatnonzero(passed).tolist()})
+               "passed_through": np.flatnonzero(passed).tolist(), **loaded})
 
 
 @dataclass(frozen=True)
@@ -542,10 +571,11 @@ def _schedule(profile: Profile, dt: float, record_hz: float) -> _Schedule:
 def _step_through(scene: Scene, d: mujoco.MjData, profile: Profile, schedule: _Schedule,
                   prony: PronyRelaxation, recorder: TraceRecorder, rec: dict[str, np.ndarray],
                   observer: Callable[[mujoco.MjData], None] | None,
-                  fail: Callable[[str], SimulationDivergedError]) -> tuple[float, float]:
+                  fail: Callable[[str], SimulationDivergedError],
+                  tilt: TiltLoad | None = None) -> tuple[float, float]:
     """Step the physics through ``profile``, filling ``rec`` and ``recorder`` at the
-    recorded steps; returns the hinge angle the motor stalled at (inf: none) and the end
-    stop (study angle)."""
+    recorded steps (and loading the held pieces with ``tilt``'s roll, if any); returns the
+    hinge angle the motor stalled at (inf: none) and the end stop (study angle)."""
     m, ids = scene.model, scene.ids
     dt = m.opt.timestep
     n = len(profile.theta)
@@ -575,9 +605,12 @@ def _step_through(scene: Scene, d: mujoco.MjData, profile: Profile, schedule: _S
     load = 0.0  # the motor's load moment, low-passed over STALL_TIME (contact impulses pass)
     smooth = 1.0 - math.exp(-dt / STALL_TIME)
     left, right = ids["servo_left"], ids["servo_right"]
+    i_tilt = n if tilt is None else tilt.first
     for i in range(n):
         if i in rescale:
             prony.set_time_scale(rescale[i])
+        if i >= i_tilt:
+            tilt.step(d, i)  # type: ignore[union-attr]
         # (two scalar reads: cheaper than a numpy reduction over a two-value gather)
         load += smooth * (max(abs(qfrc_constraint[dof_left]), abs(qfrc_constraint[dof_right]))
                           - load)
@@ -621,6 +654,9 @@ def _fetched_and_passed(scene: Scene, d: mujoco.MjData, recorder: TraceRecorder,
     stage_y = scene.pose.stage_xy[1]
     if experiment == "fetch":
         fetched = (low > 0.5 * action.lift_height) & (np.abs(centre[:, 1] - stage_y) < half_gap)
+        if action.tilt:  # and not slid off the blades' ends along the hinge axis
+            fetched &= (np.abs(centre[:, 0] - scene.pose.stage_xy[0])
+                        < 0.5 * scene.geometry.blade_width)
     else:
         fetched = np.zeros(len(scene.pieces), dtype=bool)
     # Passed through: a vertex got beyond a blade's or the plate's far face.  A very soft piece
