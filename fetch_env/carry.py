@@ -44,9 +44,11 @@ class TiltLoad:
     step through a fetch whose roll angle at each step is ``angles``.
 
     The pieces are chosen at the first step that rolls: those whose lowest vertex is above
-    ``min_height`` (lifted off the plate, as the fetch counts them)."""
+    ``min_height`` (lifted off the plate, as the fetch counts them), read by the run's own
+    ``positions`` meter."""
 
-    def __init__(self, scene: Scene, angles: np.ndarray, min_height: float) -> None:
+    def __init__(self, scene: Scene, angles: np.ndarray, min_height: float,
+                 positions: PiecePositions) -> None:
         m = scene.model
         self._nodes: list[np.ndarray] = []
         for f in scene.piece_flex:
@@ -54,7 +56,7 @@ class TiltLoad:
             self._nodes.append(np.asarray(m.flex_nodebodyid[adr:adr + num]))
         self._mass = m.body_mass
         self._g = float(-m.opt.gravity[2])
-        self._positions = PiecePositions(scene)
+        self._positions = positions
         self._min_height = min_height
         rolled = np.flatnonzero(np.asarray(angles) > 0)
         self.first = int(rolled[0]) if rolled.size else len(angles)  # the first rolled step
@@ -62,6 +64,7 @@ class TiltLoad:
         self.held = np.zeros(len(self._nodes), dtype=bool)
         self._bodies = np.zeros(0, dtype=np.intp)
         self._weight = np.zeros(0)
+        self._phi = math.nan  # the angle the nodes' force was last set for
 
     def step(self, data: mujoco.MjData, i: int) -> None:
         """Before physics step ``i`` (at or past :attr:`first`): set the held nodes' force."""
@@ -71,7 +74,8 @@ class TiltLoad:
             chosen = [nodes for nodes, h in zip(self._nodes, self.held, strict=True) if h]
             self._bodies = np.concatenate(chosen) if chosen else np.zeros(0, dtype=np.intp)
             self._weight = self._mass[self._bodies] * self._g
-        if self._bodies.size:
-            phi = self._angles[i]
+        phi = self._angles[i]
+        if self._bodies.size and phi != self._phi:  # held at the full roll: already set
+            self._phi = phi
             data.xfrc_applied[self._bodies, 0] = self._weight * math.sin(phi)
             data.xfrc_applied[self._bodies, 2] = self._weight * (1.0 - math.cos(phi))

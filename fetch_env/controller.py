@@ -499,7 +499,8 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
     wall = time.perf_counter()
     try:
         tilt = (None if profile.tilt is None
-                else TiltLoad(scene, profile.tilt, 0.5 * action.lift_height))
+                else TiltLoad(scene, profile.tilt, 0.5 * action.lift_height,
+                                 recorder.positions))
         stall_cap, end_stop = _step_through(scene, d, profile, schedule, prony, recorder, rec,
                                             observer, fail, tilt)
     finally:
