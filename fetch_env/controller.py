@@ -141,6 +141,15 @@ class TimeScale:
     keep 0.1 s, ``FETCH_HOLD_REALTIME``, which ``tests/test_quasi_static_fetch.py``
     and docs/validation/quasi-static-holds.md hold to the real-time fetch).
 
+    ``clamp_speed`` > 0 (a fetch's or a relaxation's clamp) runs a clamp slower than
+    ``clamp_speed`` rad/s as if it were that fast, each step standing for ``clamp_speed /
+    omega`` steps of the material's time (at most ``MAX_TIME_SCALE``): a slow clamp is as
+    quasi-static as a hold (the blades' tips move at millimetres a second, against the
+    contact's and servo's ~5-20 ms), so only the relaxation needs its physical time, and the
+    blades move per step as in a real clamp at ``clamp_speed``.  ``tests/
+    test_quasi_static_fetch.py`` holds the scaled clamp to the real-time one, and
+    docs/validation/quasi-static-holds.md the fetch's outcomes to the chaos floor.
+
     ``growth`` > 0 spaces the scaled steps logarithmically, as a relaxation test records its
     samples: each step stands for at least ``growth`` times the physical time elapsed since
     the hold began (and at most ``MAX_TIME_SCALE`` steps), so a hold of any length costs
@@ -153,11 +162,14 @@ class TimeScale:
         realtime: start of the hold simulated unscaled [s].
         growth: least physical time a scaled step stands for, as a share of the hold's
             elapsed physical time [-], 0 (a constant ``factor``) to 0.5.
+        clamp_speed: clamp speed a slower clamp is simulated at [rad/s], 0 (every clamp in
+            real time) or within the action's clamp speeds.
     """
 
     factor: float = 1.0
     realtime: float = 0.25
     growth: float = 0.0
+    clamp_speed: float = 0.0
 
     def __post_init__(self) -> None:
         require_finite("factor", self.factor)
@@ -167,11 +179,20 @@ class TimeScale:
                 f"in [1, {MAX_TIME_SCALE:g}]")
         require(self.realtime >= 0.0, "realtime", self.realtime, ">= 0 s")
         require(0.0 <= self.growth <= 0.5, "growth", self.growth, "in [0, 0.5]")
+        require_finite("clamp_speed", self.clamp_speed)
+        require(self.clamp_speed == 0.0
+                or OMEGA_RANGE[0] <= self.clamp_speed <= OMEGA_RANGE[1], "clamp_speed",
+                self.clamp_speed, f"0 or in [{OMEGA_RANGE[0]}, {OMEGA_RANGE[1]}] rad/s")
+
+    @property
+    def holds_scaled(self) -> bool:
+        """Whether a hold's steps are scaled (else the holds run in real time)."""
+        return self.factor != 1.0 or self.growth > 0.0
 
     @property
     def scaled(self) -> bool:
-        """Whether any step is scaled (else the hold runs in real time)."""
-        return self.factor != 1.0 or self.growth > 0.0
+        """Whether any step is scaled: a hold's or a slow clamp's."""
+        return self.holds_scaled or self.clamp_speed > 0.0
 
     def step_times(self, elapsed: float, length: float, dt: float) -> np.ndarray:
         """The physical time each scaled step stands for [s], over ``length`` s of hold that
@@ -191,10 +212,15 @@ class TimeScale:
 FETCH_HOLD_REALTIME = 0.1  # [s]
 
 
-def fetch_hold_time_scale(scale: float) -> TimeScale | None:
+def fetch_hold_time_scale(scale: float, clamp_speed: float = 0.0) -> TimeScale | None:
     """The :class:`TimeScale` of a fetch whose holds are scaled by ``scale`` past their first
-    ``FETCH_HOLD_REALTIME`` (None: 1, real time; the env's ``fetch_hold_scale``)."""
-    return None if scale == 1 else TimeScale(float(scale), realtime=FETCH_HOLD_REALTIME)
+    ``FETCH_HOLD_REALTIME`` and whose clamp, where slower than ``clamp_speed`` rad/s, is
+    run at that speed (None: all in real time; the env's ``fetch_hold_scale`` and
+    ``fetch_clamp_speed``)."""
+    if scale == 1 and clamp_speed == 0:
+        return None
+    return TimeScale(float(scale), realtime=FETCH_HOLD_REALTIME,
+                     clamp_speed=float(clamp_speed))
 
 
 @dataclass
@@ -219,7 +245,8 @@ def make_profile(experiment: str, action: FetchAction, dt: float,
 
     With ``time_scale`` a hold (the relaxation's; the fetch's hold on the plate and in the
     air) past its first ``time_scale.realtime`` is simulated time-scaled (:class:`TimeScale`):
-    one step per entry of ``TimeScale.step_times``.
+    one step per entry of ``TimeScale.step_times``; a clamp slower than
+    ``time_scale.clamp_speed`` is run at that speed, its steps standing for the rest.
     """
     require(isinstance(action, FetchAction), "action", action, "a FetchAction")
     require_finite("dt", dt)
@@ -227,11 +254,11 @@ def make_profile(experiment: str, action: FetchAction, dt: float,
     require(time_scale is None or isinstance(time_scale, TimeScale), "time_scale", time_scale,
             "a TimeScale or None")
     segments: list[tuple[str, float, float, float]] = []  # (phase, duration, dtheta, dlift)
-    t_clamp = action.theta_d / action.omega
-    segments.append(("settle", action.settle, 0.0, 0.0))
-    segments.append(("clamp", t_clamp, action.theta_d, 0.0))
-    scale = time_scale if time_scale is not None and time_scale.scaled else None
     scaled: list[tuple[int, np.ndarray]] = []  # (first step, physical time of each step)
+    segments.append(("settle", action.settle, 0.0, 0.0))
+    _add_clamp(segments, scaled, action, dt,
+               0.0 if time_scale is None else time_scale.clamp_speed)
+    scale = time_scale if time_scale is not None and time_scale.holds_scaled else None
     if experiment == "fetch":
         _add_hold(segments, scaled, "hold", action.hold, dt, scale)
         segments.append(("lift", action.lift_height / action.lift_speed, 0.0,
@@ -269,7 +296,7 @@ def make_profile(experiment: str, action: FetchAction, dt: float,
         step_time[first:first + steps.size] = steps
         in_scaled[first:first + steps.size] = True
     return Profile(theta, theta_dot, lift, lift_dot, phase, step_time, in_scaled,
-                   t_clamp_start=action.settle, i_scaled=scaled[0][0] if scaled else None,
+                   t_clamp_start=segments[0][1], i_scaled=scaled[0][0] if scaled else None,
                    tilt=_tilt_profile(experiment, action, phase, step_time))
 
 
@@ -282,6 +309,27 @@ def _tilt_profile(experiment: str, action: FetchAction, phase: np.ndarray,
     in_air = np.where(phase == PHASE_CODE["air"], step_time, 0.0)
     elapsed = np.cumsum(in_air) - in_air
     return np.where(in_air > 0, tilt_angles(elapsed, action.tilt, action.tilt_ramp), 0.0)
+
+
+def _add_clamp(segments: list[tuple[str, float, float, float]],
+               scaled: list[tuple[int, np.ndarray]], action: FetchAction, dt: float,
+               clamp_speed: float) -> None:
+    """Append the clamp to ``segments``: in real time, or, where ``action.omega`` is below
+    ``clamp_speed``, in steps that each stand for up to ``clamp_speed / omega`` physics
+    steps of material time (:class:`TimeScale`); the settle before it is then stretched by
+    under a step so that the scaled clamp starts on the step grid."""
+    t_clamp = action.theta_d / action.omega
+    if clamp_speed <= action.omega:
+        segments.append(("clamp", t_clamp, action.theta_d, 0.0))
+        return
+    start = sum(seg[1] for seg in segments)
+    first = math.ceil(start / dt - 1e-9)
+    name, length, dtheta, dlift = segments[-1]
+    segments[-1] = (name, length + first * dt - start, dtheta, dlift)
+    factor = min(clamp_speed / action.omega, MAX_TIME_SCALE)
+    steps = max(1, math.ceil(t_clamp / (factor * dt) - 1e-9))
+    segments.append(("clamp", steps * dt, action.theta_d, 0.0))
+    scaled.append((first, np.full(steps, t_clamp / steps)))
 
 
 def _add_hold(segments: list[tuple[str, float, float, float]],

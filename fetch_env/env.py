@@ -255,6 +255,7 @@ _COMMON_DOC = """
     | fetch_timestep | 0.005 | the fetch's physics step [s], 0.001-0.01 (probes keep their own) |
     | fetch_impratio | None | fetch's friction impratio, 1-1e4 (None: 1000, 100 if several pieces) |
     | fetch_hold_scale | 1.0 | fetch's holds past their first 0.1 s quasi-static, 1-20 (1: off) |
+    | fetch_clamp_speed | 0.0 | slower clamps simulated at this speed [rad/s], 0.05-0.4 (0: off) |
     | render_mode | None | None, "rgb_array", "rgb_array_list" or "human" (needs a display) |
     | width | 480 | frame width [px] |
     | height | 360 | frame height [px] |
@@ -285,6 +286,16 @@ _COMMON_DOC = """
     far outcomes move against the real-time fetch and the chaos floor, and the speed it
     buys, are measured in ``docs/validation/quasi-static-holds.md``
     (``benchmarks/bench_quasi_static.py``).
+
+    ``fetch_clamp_speed`` > 0 simulates a clamp slower than it at that speed, each physics
+    step standing for ``fetch_clamp_speed / omega`` steps of the food's relaxation
+    (``fetch_env.controller.TimeScale.clamp_speed``): a slow clamp is quasi-static, so the
+    blades may move as fast per step as in a real clamp at that speed while the food relaxes
+    through the clamp's whole physical time.  A clamp at 0.01 rad/s then costs a tenth of
+    its steps at 0.1.  Off (0) on every id, for the same reason as ``fetch_hold_scale``.
+    On the same page: with ``fetch_hold_scale=5`` and ``fetch_clamp_speed=0.1`` (the clamp
+    speed chosen on tuning scenes) every id's outcomes stay at the chaos floor, for 1.4-1.8x
+    the episodes per core; for training and large evaluations, pass both.
 
     ## Version history
     - v2 (0.2.0, TwoRows only): the v1 rewards on the "resolved" scene space
@@ -397,11 +408,13 @@ def _check_probe_options(probe_hold: float, probe_omega: float, probe_strain: fl
 
 
 def _check_fetch_physics(fetch_timestep: float, fetch_impratio: float | None,
-                         fetch_hold_scale: float) -> None:
-    """Refuse a fetch step outside [1, 10] ms, an impratio that is not None or in [1, 1e4]
-    and a hold scale outside [1, 20]."""
+                         fetch_hold_scale: float, fetch_clamp_speed: float) -> None:
+    """Refuse a fetch step outside [1, 10] ms, an impratio that is not None or in [1, 1e4],
+    a hold scale outside [1, 20] and a clamp speed that is not 0 or in [0.05, 0.4] rad/s."""
     require(math.isfinite(fetch_hold_scale) and 1 <= fetch_hold_scale <= 20,
             "fetch_hold_scale", fetch_hold_scale, "in [1, 20]")
+    require(fetch_clamp_speed == 0 or 0.05 <= fetch_clamp_speed <= 0.4,
+            "fetch_clamp_speed", fetch_clamp_speed, "0 or in [0.05, 0.4] rad/s")
     require(math.isfinite(fetch_timestep) and 0.001 <= fetch_timestep <= 0.01,
             "fetch_timestep", fetch_timestep, "in [0.001, 0.01] s")
     require(fetch_impratio is None or (isinstance(fetch_impratio, (int, float))
@@ -451,6 +464,7 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         fetch_timestep: float = 0.005,
         fetch_impratio: float | None = None,
         fetch_hold_scale: float = 1.0,
+        fetch_clamp_speed: float = 0.0,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -468,7 +482,8 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         FetchAction(hold=hold, lift_height=lift_height, air_hold=air_hold, settle=settle)
         probe_config = _probe_config(probes, probe_hold, probe_omega, probe_strain,
                                      probe_time_scale, probe_time_growth)
-        _check_fetch_physics(fetch_timestep, fetch_impratio, fetch_hold_scale)
+        _check_fetch_physics(fetch_timestep, fetch_impratio, fetch_hold_scale,
+                             fetch_clamp_speed)
 
         self.layout = layout
         self.estimator = estimator
@@ -493,7 +508,9 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         self.fetch_timestep = float(fetch_timestep)
         self.fetch_impratio = None if fetch_impratio is None else float(fetch_impratio)
         self.fetch_hold_scale = float(fetch_hold_scale)
-        self._fetch_time_scale = fetch_hold_time_scale(self.fetch_hold_scale)
+        self.fetch_clamp_speed = float(fetch_clamp_speed)
+        self._fetch_time_scale = fetch_hold_time_scale(self.fetch_hold_scale,
+                                                       self.fetch_clamp_speed)
         self.render_mode = render_mode
         self.width, self.height, self.camera = width, height, camera
         self._init_spaces_and_state()

@@ -760,7 +760,7 @@ def test_simulator_settings_in_range_or_typed_error(field_value: tuple[str, Any]
                             st.sampled_from(["Fetch", "", "grasp"]), junk),
        action=st.one_of(st.none(), st.just(FetchAction()), junk),
        time_scale=st.one_of(st.none(), st.just(TimeScale()), st.just(TimeScale(factor=8.0)),
-                            junk))
+                            st.just(TimeScale(clamp_speed=0.2)), junk))
 def test_run_arguments_are_checked_before_any_physics(experiment: Any, action: Any,
                                                       time_scale: Any) -> None:
     """An unknown experiment, a non-FetchAction action, a non-TimeScale time scale or a
