@@ -230,7 +230,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.page is not None or args.tuning_page is not None:
         for path, tuning in ((args.page, False), (args.tuning_page, True)):
             if path is not None:
-                write_page(json.loads(path.read_text()), tuning=tuning)
+                try:
+                    data = json.loads(path.read_text())
+                except (OSError, ValueError) as exc:
+                    p.error(f"{path}: {exc}")
+                write_page(data, tuning=tuning)
         return 0
     unknown = [i for i in args.ids if i not in gym.registry]
     if unknown:

@@ -185,6 +185,8 @@ def main(argv: list[str] | None = None) -> int:
     records: dict[str, list[dict[str, Any]]] = {i: [] for i in ids}
     start = time.time()
 
+    saved = []  # whether --out was written
+
     def save(complete: bool = False) -> None:
         out = {"meta": meta(time.time() - start), "roll": ROLL, "air_hold": AIR_HOLD,
                "best_theta": {i: BEST_THETA[i] for i in ids},
@@ -192,6 +194,7 @@ def main(argv: list[str] | None = None) -> int:
                            "scenes": sorted(r, key=lambda x: x["seed"])}
                        for i, r in records.items() if r}, "complete": complete}
         write_json(args.out, out)
+        saved.append(True)
 
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, _raise_interrupt)
@@ -199,8 +202,9 @@ def main(argv: list[str] | None = None) -> int:
         _roll_all(ids, args.seeds, args.workers, records, save)
     except (KeyboardInterrupt, BrokenProcessPool) as exc:
         why = "stopped" if isinstance(exc, KeyboardInterrupt) else "a worker died"
-        print(f"carry_roll: {why}; what finished is in {args.out} (\"complete\": false)",
-              file=sys.stderr)
+        kept = (f"what finished is in {args.out} (\"complete\": false)" if saved
+                else f"no scene finished; {args.out} is as it was")
+        print(f"carry_roll: {why}; {kept}", file=sys.stderr)
         return 130 if isinstance(exc, KeyboardInterrupt) else 1
     save(complete=True)
     for i in ids:

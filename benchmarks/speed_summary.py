@@ -65,7 +65,7 @@ def main() -> int:
     info["wall_s"] = round(time.perf_counter() - start, 1)
     info["load_average_at_end"] = round(os.getloadavg()[0], 2)
     write_json(args.out, {"meta": info, "episodes": args.episodes, "simulator": simulator,
-                          "envs": envs})
+                          "quasi_static_settings": QUASI_STATIC, "envs": envs})
     print(f"wrote {args.out} in {info['wall_s']:.0f} s")
     return 0
 

@@ -235,7 +235,7 @@ class Profile:
     step_time: np.ndarray  # [s] physical time each step stands for (dt but in a scaled hold)
     scaled: np.ndarray  # bool: the steps of the time-scaled holds
     t_clamp_start: float
-    i_scaled: int | None = None  # the step the first time-scaled hold starts at (None: none)
+    i_scaled: int | None = None  # the first time-scaled step, of a clamp or hold (None: none)
     tilt: np.ndarray | None = None  # [rad] the pair's roll at each step (None: no roll)
 
 
@@ -319,15 +319,17 @@ def _add_clamp(segments: list[tuple[str, float, float, float]],
     steps of material time (:class:`TimeScale`); the settle before it is then stretched by
     under a step so that the scaled clamp starts on the step grid."""
     t_clamp = action.theta_d / action.omega
-    if clamp_speed <= action.omega:
+    factor = min(clamp_speed / action.omega, MAX_TIME_SCALE)
+    steps = max(1, math.ceil(t_clamp / (factor * dt) - 1e-9)) if factor > 1 else 0
+    if steps == 0 or steps >= math.ceil(t_clamp / dt - 1e-9):
+        # a clamp at least as fast as clamp_speed, or one so short that rounding its scaled
+        # steps up would save none (and make them shorter than dt): in real time
         segments.append(("clamp", t_clamp, action.theta_d, 0.0))
         return
     start = sum(seg[1] for seg in segments)
     first = math.ceil(start / dt - 1e-9)
     name, length, dtheta, dlift = segments[-1]
     segments[-1] = (name, length + first * dt - start, dtheta, dlift)
-    factor = min(clamp_speed / action.omega, MAX_TIME_SCALE)
-    steps = max(1, math.ceil(t_clamp / (factor * dt) - 1e-9))
     segments.append(("clamp", steps * dt, action.theta_d, 0.0))
     scaled.append((first, np.full(steps, t_clamp / steps)))
 
@@ -589,14 +591,14 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
 class _Schedule:
     """Which physics steps a run records, and where the time scale of its hold changes.
 
-    The first time-scaled hold (if any) starts at step ``i_scaled``; the scaled holds'
-    sensors are recorded at every step (each stands for several); the strain, blade overlap
-    and lowest vertex, which hardly move in a hold, keep the regular cadence (``metered``)
-    and are held between.
+    The first time-scaled step (of a slow clamp or a hold, if any) is ``i_scaled``; the
+    scaled steps' sensors are recorded at every step (each stands for several); the strain,
+    blade overlap and lowest vertex, which hardly move in a hold, keep the regular cadence
+    (``metered``) and are held between.
     Lists, not arrays: the step loop reads one element at a time, faster from a list.
     """
 
-    i_scaled: int  # first step of the time-scaled hold (the step count: none)
+    i_scaled: int  # first time-scaled step (the step count: none)
     t_physical: list[float]  # [s] physical time at the end of each step
     rescale: dict[int, float]  # step -> the time scale (in physics steps) from there on
     metered: list[bool]  # steps whose strain, overlap and lowest vertex are sampled

@@ -164,8 +164,9 @@ def speed_table(data: dict[str, Any]) -> str:
     meta = data["meta"]
     load = (f"{meta['load_average_at_start']:g} at the start, "
             f"{meta['load_average_at_end']:g} at the end")
-    quasi = ("; quasi-static: `fetch_hold_scale=5, fetch_clamp_speed=0.1`"
-             if all("quasi_static" in envs[i] for i in shown) else "")
+    settings = ", ".join(f"{k}={v:g}" for k, v in data.get("quasi_static_settings", {}).items())
+    quasi = (f"; quasi-static: `{settings}`"
+             if settings and all("quasi_static" in envs[i] for i in shown) else "")
     return ("\n".join(rows) + f"\n\nOne core, {data['episodes']} episodes an id{quasi}; load "
             f"average {load}; " + _footer(meta).lstrip("\n"))
 
