@@ -20,7 +20,7 @@ Each scene is kept as it finishes (``--json`` rewritten atomically, ``"complete"
 until the end): Ctrl-C, SIGTERM or a lost worker ends the run in one line with every
 finished scene and its id's summary in the file.
 
-Run: python benchmarks/bench_quasi_static.py --seeds 60000:60040 --runs 5,1:0.2,5:0.2 \\
+Run: python benchmarks/bench_quasi_static.py --seeds 60000:60040 --runs 5,1:0.1,5:0.1 \\
        --workers 2 --json docs/data/quasi_static.json
      python benchmarks/bench_quasi_static.py --page docs/data/quasi_static.json
 """
@@ -28,7 +28,6 @@ Run: python benchmarks/bench_quasi_static.py --seeds 60000:60040 --runs 5,1:0.2,
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import signal
@@ -36,6 +35,7 @@ import statistics
 import sys
 import time
 import warnings
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
@@ -48,14 +48,21 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import fetch_env  # noqa: F401  (registers the ids)
 from agents.evaluate import _close_pool
+from benchmarks.bench_step_size import twin_of
 from benchmarks.readme_meta import meta, rewrite_block, write_json
-from benchmarks.validate_estimators import _worker_signals
+from benchmarks.validate_estimators import _raise_interrupt, _worker_signals
+from fetch_env.layouts import Piece
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "validation" / "quasi-static-holds.md"
 DEFAULT_IDS = ("FoodFetch-Block-v1", "FoodFetch-Row-v1", "FoodFetch-TwoRows-v1",
                "FoodFetch-Diced-v1")
-TWIN_SHIFT = 1e-9  # [m] as benchmarks/bench_step_size.py: physically nothing
+
+
+def seeded_twin(pieces: Sequence[Piece], seed: int) -> tuple[Piece, ...]:
+    """Scene ``seed``'s twin (:func:`benchmarks.bench_step_size.twin_of`), a sign a piece
+    drawn from ``seed``."""
+    return twin_of(pieces, np.random.default_rng(seed).choice([-1.0, 1.0], size=len(pieces)))
 
 
 def _fetch(env: gym.Env, action: np.ndarray) -> dict[str, Any]:
@@ -95,10 +102,7 @@ def run_scene(env_id: str, seed: int, runs: tuple[Run, ...]) -> dict[str, Any]:
     out: dict[str, Any] = {"seed": seed, "reset_cpu": time.thread_time() - t,
                            "n_pieces": len(ref.unwrapped.pieces), "ref": _fetch(ref, action)}
     pieces = ref.unwrapped.pieces
-    signs = np.random.default_rng(seed).choice([-1.0, 1.0], size=len(pieces))
-    moved = [dataclasses.replace(p, x=p.x + s * TWIN_SHIFT)
-             for p, s in zip(pieces, signs, strict=True)]
-    ref.reset(seed=seed, options={"pieces": moved})
+    ref.reset(seed=seed, options={"pieces": seeded_twin(pieces, seed)})
     out["twin"] = _fetch(ref, action)
     ref.close()
     for scale, clamp in runs:
@@ -258,10 +262,6 @@ def main(argv: list[str] | None = None) -> int:
         return 130 if isinstance(exc, KeyboardInterrupt) else 1
     print(page(data))
     return 0
-
-
-def _raise_interrupt(signum: int, _frame: Any) -> None:
-    raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
 def _measure(args: argparse.Namespace, runs: list[str], data: dict[str, Any]) -> None:

@@ -39,6 +39,7 @@ import json
 import os
 import platform
 import statistics
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 
 import mujoco
@@ -50,10 +51,17 @@ from fetch_env.controller import (
     fetch_hold_time_scale,
     make_profile,
 )
-from fetch_env.layouts import diced_mix
+from fetch_env.layouts import Piece, diced_mix
 
 CRUSHED_LOG_STRAIN = 1.0  # above it a piece's one-cell flex has inverted (README, "Crushed")
 TWIN_SHIFT = 1e-9  # [m] how far a twin's pieces are moved: physically nothing
+
+
+def twin_of(pieces: Sequence[Piece], signs: Sequence[float]) -> tuple[Piece, ...]:
+    """A scene's twin: every piece moved ``TWIN_SHIFT`` along x, by ``signs`` (+-1, one a
+    piece): a change of nothing physical, whose effect on an outcome is the chaos floor."""
+    return tuple(dataclasses.replace(p, x=p.x + s * TWIN_SHIFT)
+                 for p, s in zip(pieces, signs, strict=True))
 
 
 def run_mix(seed: int, steps: tuple[float, ...], theta_d: float, twins: bool = False,
@@ -66,8 +74,7 @@ def run_mix(seed: int, steps: tuple[float, ...], theta_d: float, twins: bool = F
     rng = np.random.default_rng(seed)
     pieces = diced_mix(rng)
     signs = rng.choice([-1.0, 1.0], size=len(pieces))
-    moved = tuple(dataclasses.replace(p, x=p.x + s * TWIN_SHIFT)
-                  for p, s in zip(pieces, signs, strict=True))
+    moved = twin_of(pieces, signs)
     configs = list(zip(steps, impratios or (None,) * len(steps),
                        hold_scales or (1.0,) * len(steps),
                        clamp_speeds or (0.0,) * len(steps), strict=True))

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures as cf
-import dataclasses
 import json
 import math
 import signal
@@ -48,16 +47,16 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from agents.evaluate import _close_pool  # noqa: E402
+from benchmarks.bench_quasi_static import seeded_twin  # noqa: E402
 from benchmarks.readme_meta import meta, rewrite_block, write_json  # noqa: E402
 from benchmarks.theta_sweep import LIFT_SPEED, OMEGA, seed_range  # noqa: E402
-from benchmarks.validate_estimators import _worker_signals  # noqa: E402
+from benchmarks.validate_estimators import _raise_interrupt, _worker_signals  # noqa: E402
 
 # The best constant clamp angle of each id on these tuning scenes (docs/data/theta_sweep/).
 BEST_THETA = {"FoodFetch-Block-v1": 0.05, "FoodFetch-Row-v1": 0.03,
               "FoodFetch-TwoRows-v2": 0.05}
 AIR_HOLD = 1.0  # [s] the roll's 0.4 s ramp, then 0.6 s held
 ROLL = 0.5 * math.pi  # [rad]
-TWIN_SHIFT = 1e-9  # [m] a scene's twin: its pieces moved by physically nothing
 DATA = ROOT / "docs" / "data" / "carry_roll.json"  # the tuning scenes (seeds 100-139)
 HELD_OUT = ROOT / "docs" / "data" / "carry_roll_heldout.json"  # seeds never tuned on
 DOC = ROOT / "docs" / "agents.md"
@@ -86,7 +85,7 @@ def roll_scene(env_id: str, seed: int) -> dict[str, Any]:
                     for a, b in zip(flat.pieces, rolled.pieces, strict=True)]}
     if _dropped(record["held"], record["held_rolled"]):
         # the carry, or the chaos of a multi-piece fetch?  The same scene, moved 1 nm.
-        twin = FetchSimulator(_moved(u.pieces, seed), u.geometry, timestep=u.fetch_timestep,
+        twin = FetchSimulator(seeded_twin(u.pieces, seed), u.geometry, timestep=u.fetch_timestep,
                               impratio=u.fetch_impratio)
         record["twin_held"] = [p["fetched"] for p in twin.run("fetch", FetchAction(**base)).pieces]
         record["twin_held_rolled"] = [
@@ -104,14 +103,6 @@ def roll_scene(env_id: str, seed: int) -> dict[str, Any]:
 def _dropped(held: list[bool], held_rolled: list[bool]) -> int:
     """Pieces held unrolled and dropped rolled."""
     return sum(a and not b for a, b in zip(held, held_rolled, strict=True))
-
-
-def _moved(pieces: tuple[Any, ...], seed: int) -> tuple[Any, ...]:
-    """The scene's twin: every piece moved ``TWIN_SHIFT`` along x, a seeded sign each (as
-    ``benchmarks/bench_quasi_static.py``'s): physically nothing."""
-    signs = np.random.default_rng(seed).choice([-1.0, 1.0], size=len(pieces))
-    return tuple(dataclasses.replace(p, x=p.x + s * TWIN_SHIFT)
-                 for p, s in zip(pieces, signs, strict=True))
 
 
 def summarize(records: list[dict[str, Any]]) -> dict[str, Any]:
@@ -227,8 +218,6 @@ def _roll_all(ids: list[str], seeds: range, workers: int,
         _close_pool(pool, clean)  # after a stop or a lost worker, the workers end too
 
 
-def _raise_interrupt(signum: int, _frame: Any) -> None:
-    raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
 if __name__ == "__main__":

@@ -233,7 +233,7 @@ class Profile:
     lift_dot: np.ndarray  # [m/s]
     phase: np.ndarray  # int codes into PHASES
     step_time: np.ndarray  # [s] physical time each step stands for (dt but in a scaled hold)
-    scaled: np.ndarray  # bool: the steps of the time-scaled holds
+    scaled: np.ndarray  # bool: the time-scaled steps (of a slow clamp or a hold)
     t_clamp_start: float
     i_scaled: int | None = None  # the first time-scaled step, of a clamp or hold (None: none)
     tilt: np.ndarray | None = None  # [rad] the pair's roll at each step (None: no roll)
