@@ -10,7 +10,7 @@ which keeps Ray's per-task cost a small share of a one-second Block episode.
 Why Ray: it schedules tasks over every machine of a cluster, retries a task whose worker
 died, and lets a task start more tasks (``search`` spreads its per-scene simulations), with
 no code of ours for any of it.  What is ours: the address check before any work starts, the
-stop (Ctrl-C, SIGTERM: the unfinished tasks are cancelled, the finished ones kept), and a
+stop (Ctrl-C, SIGTERM: the unfinished tasks ended, the finished ones kept), and a
 cluster that goes away ending the run with one line instead of a hang.
 """
 
@@ -73,9 +73,9 @@ def _reachable(address: str, timeout: float = 3.0) -> str | None:
 
 
 @contextmanager
-def connected(address: str, num_cpus: int) -> Iterator[Any]:
+def connected(address: str, num_cpus: int) -> Iterator[tuple[Any, bool]]:
     """Ray, initialised for ``address`` (a local instance of ``num_cpus`` CPUs for
-    ``local``), shut down again at the end when this call started it."""
+    ``local``), and whether this call started it (then it shuts it down again at the end)."""
     try:
         import ray
     except ImportError:
@@ -102,7 +102,7 @@ def connected(address: str, num_cpus: int) -> Iterator[Any]:
         finally:
             _restore(handlers)  # Ray's own SIGTERM handler would end the process at once
     try:
-        yield ray
+        yield ray, started
     finally:
         if started:
             with suppress(Exception):
@@ -162,11 +162,11 @@ def run_on_ray(tasks: Sequence[Any], collect: Callable[[int, dict[str, Any]], No
     An episode that raises ends the run with :class:`agents.evaluate._EpisodeFailed`; a worker
     that dies is replaced by Ray and its batch rerun once; a second death, or a head that
     stops answering for :data:`HEAD_LOST_AFTER_S`, raises :class:`ClusterLost`.  On any exit
-    the unfinished tasks are cancelled.
+    the unfinished tasks end: cancelled on a cluster, shut down with a local instance.
     """
     from agents.evaluate import _EpisodeFailed
 
-    with connected(address, num_cpus) as ray:
+    with connected(address, num_cpus) as (ray, started):
         cpus = max(1, int(ray.cluster_resources().get("CPU", num_cpus)))
         remote = ray.remote(num_cpus=1, max_retries=1)(_run_batch)
         groups = batches(len(tasks), batch, cpus)
@@ -181,7 +181,11 @@ def run_on_ray(tasks: Sequence[Any], collect: Callable[[int, dict[str, Any]], No
                             raise _EpisodeFailed(tasks[i], value)
                         collect(i, value)
         finally:
-            for ref in refs:
+            # Unfinished tasks: an instance this run started is shut down on exit, which ends
+            # them; cancelling them first can race with a task's reply and abort Ray's core
+            # worker ("Tried to complete task that was not pending", ray-project/ray#54846),
+            # so only a cluster's tasks, which would run on, are cancelled.
+            for ref in refs if not started else ():
                 with suppress(Exception):
                     ray.cancel(ref, force=True)
 
