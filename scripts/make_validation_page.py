@@ -37,7 +37,8 @@ CROSS_VALIDATED = ("tuning_measure_uncal_noise0", "tuning_measure_uncal_noise0.0
 HEAD = """# Estimator validation over the food space
 
 What `fetch_env.probes.run_probes` (the probes every environment reset runs, here with the
-`measure` settings: a 20 s relaxation hold) and the estimators give on foods drawn from the
+`measure` settings: a 20 s relaxation hold, a 0.3 s slide whose force-ratio envelope is read
+on each half-spoon, the lower of the two) and the estimators give on foods drawn from the
 whole documented food space (`fetch_env.food_space`: cube, ellipsoid, sphere; 8-25 mm;
 E_0 0.0123-5 MPa; g1 0.1-0.8; tau1 0.5-10 s; mu 0.1-0.8; Poisson 0.25-0.45; density
 950-1150 kg/m^3), by a scrambled Sobol' design.  The truth: g1, tau1 and mu are the

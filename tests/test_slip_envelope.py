@@ -1,0 +1,106 @@
+"""The slip probe's envelope read per half-spoon (``ProbeConfig.slip_envelope``).
+
+Coulomb friction bounds each half-spoon's own force ratio |F_t| / F_n by mu, and each reaches
+it whenever its face slips.  Read per half-spoon, the lower of the two envelopes is mu where
+one face misreads (a blade tip ploughing into a cube's face) and where the faces slip at
+different times (stick-slip), both of which the summed forces' envelope gets wrong.  Proven
+first on synthetic traces whose mu is known exactly, then on simulated cubes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator, SimResult
+from fetch_env.errors import InvalidParameterError
+from fetch_env.food_space import Food, sample_foods
+from fetch_env.probes import PROBE_PRESETS, SLIP_ENVELOPES, ProbeConfig, estimate_mu, probe_angle
+
+MU = 0.3
+N_SLIDE = 40
+
+
+def synthetic_slip(left_ratio: np.ndarray, right_ratio: np.ndarray) -> SimResult:
+    """A slip run's traces: 10 settle samples, then a slide whose half-spoons press with 1 N
+    and 1.2 N and pull with the given ratios of it."""
+    n = 10 + left_ratio.size
+    phase = np.full(n, PHASE_CODE["settle"], dtype=float)
+    phase[10:] = PHASE_CODE["slide"]
+    normal_left, normal_right = np.ones(n), np.full(n, 1.2)
+    traces = {"t": 0.01 * np.arange(n), "phase": phase,
+              "normal_left": normal_left, "normal_right": normal_right,
+              "tangential_left": normal_left * np.r_[np.zeros(10), left_ratio],
+              "tangential_right": normal_right * np.r_[np.zeros(10), right_ratio]}
+    return SimResult(experiment="slip", action=FetchAction(), scene={}, traces=traces,
+                     pieces=[], fetch_rate=0.0, fetch_rate_mass=0.0, geometry={},
+                     material={}, wall_time=0.0, n_steps=n, timestep=0.01)
+
+
+def test_one_ploughing_face_does_not_set_mu() -> None:
+    """The left face slides at mu but reads twice mu on 4 late samples: the per-blade
+    envelope is the right face's mu; the summed one is pulled up by the spike."""
+    left = np.full(N_SLIDE, MU)
+    left[-6:-2] = 2 * MU
+    right = np.full(N_SLIDE, MU)
+    per_blade = estimate_mu(synthetic_slip(left, right), envelope="per_blade")[0]
+    summed = estimate_mu(synthetic_slip(left, right), envelope="sum")[0]
+    np.testing.assert_allclose(per_blade, MU, rtol=1e-9)
+    assert summed > 1.3 * MU
+
+
+def test_faces_slipping_at_different_times_read_mu() -> None:
+    """Stick-slip: each face sits at half mu and slips to mu on its own samples, never with
+    the other.  Each face's envelope is mu, the summed forces' ratio never reaches it."""
+    left, right = np.full(N_SLIDE, MU / 2), np.full(N_SLIDE, MU / 2)
+    left[12::6] = MU
+    right[15::6] = MU
+    per_blade = estimate_mu(synthetic_slip(left, right), envelope="per_blade")[0]
+    summed = estimate_mu(synthetic_slip(left, right), envelope="sum")[0]
+    np.testing.assert_allclose(per_blade, MU, rtol=1e-9)
+    assert summed < 0.8 * MU
+
+
+def test_the_envelope_setting_is_validated() -> None:
+    left = right = np.full(N_SLIDE, MU)
+    with pytest.raises(InvalidParameterError, match="envelope"):
+        estimate_mu(synthetic_slip(left, right), envelope="mean")
+    with pytest.raises(InvalidParameterError, match="slip_envelope"):
+        ProbeConfig(slip_envelope="max")
+    assert PROBE_PRESETS["measure"].slip_envelope == "per_blade"
+    assert PROBE_PRESETS["env"].slip_envelope == "sum"  # the environments' observations
+    assert set(SLIP_ENVELOPES) == {"sum", "per_blade"}
+
+
+# A design seeded apart from the tuning (1000) and reporting (2000) foods.
+CHECK_SEED = 3000
+
+
+def slip_run(food: Food) -> SimResult:
+    """The measure preset's slip probe on ``food``."""
+    cfg = PROBE_PRESETS["measure"]
+    sim = FetchSimulator((food.piece(),), record_hz=1.0 / cfg.slip_timestep,
+                         timestep=cfg.slip_timestep)
+    action = FetchAction(theta_d=probe_angle(sim, cfg.slip_strain, "slip"),
+                         omega=cfg.slip_omega, hold=cfg.slip_hold, settle=cfg.settle,
+                         slide_distance=cfg.slide_distance, slide_time=cfg.slide_time)
+    return sim.run("slip", action)
+
+
+@pytest.mark.filterwarnings("ignore::fetch_env.errors.ParameterClippedWarning")
+def test_simulated_foods_read_closer_per_blade() -> None:
+    """On 64 simulated foods of the whole space (cubes, ellipsoids, spheres; 8-25 mm;
+    0.0123-5 MPa; mu 0.1-0.8), the per-blade envelope's median |error| is at most 0.5 %, it
+    misses by more than 1.4 % on fewer foods than the summed envelope.  The bars were set
+    after seeing this design's first 128 foods (per blade: median 0.11 %, 21 over 1.4 %;
+    summed: 0.39 %, 37); the rule itself was chosen on the tuning foods
+    (:data:`fetch_env.probes.SLIP_ENVELOPES`).  It is not better on every food: among these
+    64 one food reads 33 % high per blade and 21 % summed."""
+    errors: dict[str, list[float]] = {e: [] for e in SLIP_ENVELOPES}
+    for food in sample_foods(64, CHECK_SEED):
+        run = slip_run(food)
+        for e in SLIP_ENVELOPES:
+            errors[e].append(abs(estimate_mu(run, envelope=e)[0] / food.mu - 1))
+    per_blade, summed = np.array(errors["per_blade"]), np.array(errors["sum"])
+    assert np.median(per_blade) <= 0.005
+    assert np.sum(per_blade > 0.014) < np.sum(summed > 0.014)
