@@ -48,6 +48,7 @@ import validate_estimators as ve
 
 from fetch_env.food_space import TUNING_SEED, Food, sample_foods
 from fetch_env.probes import PROBE_PRESETS, ProbeConfig
+from fetch_env.scene import Geometry
 
 BASE = PROBE_PRESETS["measure"]
 VARIANTS: dict[str, ProbeConfig] = {
@@ -63,15 +64,17 @@ TARGETS = ("g1", "tau1")
 
 
 def run_variant(name: str, config: ProbeConfig, foods: list[Food], work: Path,
-                workers: int) -> tuple[list[dict[str, Any]], str]:
-    """Uncalibrated records of one clamp on ``foods``, streamed to ``work`` and resumed by
-    the harness's own runner; and why it stopped ("" when every food finished)."""
+                workers: int, geometry: Geometry | None = None
+                ) -> tuple[list[dict[str, Any]], str]:
+    """Uncalibrated records of one clamp (by ``config``, with ``geometry`` where given) on
+    ``foods``, streamed to ``work`` and resumed by the harness's own runner; and why it
+    stopped ("" when every food finished)."""
     path = work / (name.replace(" ", "_") + ".jsonl")
     done = ve._done_indices(path)
     records = list(done.values())
     todo = [f for f in foods if f.index not in done]
     run = argparse.Namespace(preset="measure", noise=0.0, workers=workers)
-    stopped = ve._run_foods(todo, run, False, path, records, config) if todo else ""
+    stopped = ve._run_foods(todo, run, False, path, records, config, geometry) if todo else ""
     return records, stopped
 
 
@@ -135,15 +138,20 @@ def table(results: list[dict[str, Any]]) -> str:
     return "\n".join(rows)
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def parse_tuning_args(description: str, name: str, argv: list[str] | None
+                      ) -> tuple[argparse.Namespace, list[dict[str, Any]], list[Food]]:
+    """The command line of a script that reprobes the tuning foods (``--n``, ``--workers``,
+    ``--base``, ``--work``, ``--out``), checked: the parsed arguments, the base run's
+    records and the foods.  Exits with argparse's one-line error on a bad value or a base
+    that is not an uncalibrated, noiseless tuning run of the measure preset."""
+    p = argparse.ArgumentParser(description=description)
     p.add_argument("--n", type=int, default=256, help="tuning foods (default 256)")
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--base", type=Path, required=True, metavar="JSON",
                    help="the measure probe's uncalibrated tuning run (validate_estimators.py "
                    "--set tuning --no-calibration --noise 0) on the same foods")
-    p.add_argument("--work", type=Path, default=Path("out/second_clamp"))
-    p.add_argument("--out", type=Path, default=Path("docs/data/validation/second_clamp.json"))
+    p.add_argument("--work", type=Path, default=Path(f"out/{name}"))
+    p.add_argument("--out", type=Path, default=Path(f"docs/data/validation/{name}.json"))
     args = p.parse_args(argv)
     if not 16 <= args.n <= 4096 or args.workers < 1:
         p.error(f"--n {args.n} must be in [16, 4096] and --workers {args.workers} >= 1")
@@ -153,8 +161,12 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--base {args.base}: not an uncalibrated, noiseless tuning run of the "
                 f"measure preset on {args.n} foods")
     args.work.mkdir(parents=True, exist_ok=True)
-    foods = sample_foods(args.n, TUNING_SEED)
-    runs = {"measure": base["records"]}
+    return args, base["records"], sample_foods(args.n, TUNING_SEED)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args, base, foods = parse_tuning_args(__doc__.split("\n\n")[0], "second_clamp", argv)
+    runs = {"measure": base}
     for name, config in VARIANTS.items():
         runs[name], stopped = run_variant(name, config, foods, args.work, args.workers)
         if stopped:

@@ -69,6 +69,7 @@ from fetch_env.probes import (
     run_probes,
     true_parameters_exact,
 )
+from fetch_env.scene import Geometry
 from fetch_env.spaces import VISCO_NAMES
 
 SETS = ("tuning", "reporting", "corners", "stiff")
@@ -86,18 +87,20 @@ def foods_of(name: str, n: int) -> list[Food]:
 
 
 def measure(food: Food, preset: str, noise: float, seed: int, calibrate: bool = True,
-            config: ProbeConfig | None = None) -> dict[str, Any]:
+            config: ProbeConfig | None = None, geometry: Geometry | None = None
+            ) -> dict[str, Any]:
     """Probe one food and hold the estimates to the truth (never raises); ``calibrate``
     applies the preset's shipped calibration, where it has one; ``config`` replaces the
     preset's probe settings (then leave ``calibrate`` off: a calibration holds only for the
-    settings it was fitted for)."""
+    settings it was fitted for), ``geometry`` the end-effector's default."""
     config = PROBE_PRESETS[preset] if config is None else config
     piece = food.piece()
     calibration = PROBE_CALIBRATIONS.get(preset) if calibrate else None
     t0 = time.perf_counter()
     try:
-        out = run_probes((piece,), config, noise=noise, seed=seed, calibration=calibration)
-        truth = true_parameters_exact(piece, config)
+        out = run_probes((piece,), config, geometry, noise=noise, seed=seed,
+                         calibration=calibration)
+        truth = true_parameters_exact(piece, config, geometry)
     except Exception as exc:  # a harness keeps going; the record says what failed
         return {"food": food.to_dict(), "crash": f"{type(exc).__name__}: {exc}"}
     rec: dict[str, Any] = {
@@ -501,18 +504,20 @@ def _raise_interrupt(signum: int, _frame: Any) -> None:
 
 
 def _run_foods(foods: list[Food], args: argparse.Namespace, calibrated: bool, jsonl: Path,
-               records: list[dict[str, Any]], config: ProbeConfig | None = None) -> str:
-    """Measure ``foods`` on a process pool (``config`` replacing the preset's probe settings,
-    as in :func:`measure`), appending each record to ``jsonl`` as it finishes.  Returns ""
-    when all finished, else why it stopped: Ctrl-C, SIGTERM or SIGHUP (handled alike), or a
-    worker that died (the pool breaks instead of hanging)."""
+               records: list[dict[str, Any]], config: ProbeConfig | None = None,
+               geometry: Geometry | None = None) -> str:
+    """Measure ``foods`` on a process pool (``config`` and ``geometry`` replacing the preset's
+    probe settings and the default end-effector, as in :func:`measure`), appending each
+    record to ``jsonl`` as it finishes.  Returns "" when all finished, else why it stopped:
+    Ctrl-C, SIGTERM or SIGHUP (handled alike), or a worker that died (the pool breaks instead
+    of hanging)."""
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, _raise_interrupt)
     pool = ProcessPoolExecutor(args.workers, initializer=_worker_signals)
     try:
         with jsonl.open("a") as log:
             futures = [pool.submit(measure, f, args.preset, args.noise, 7919 * f.index + 1,
-                                   calibrated, config) for f in foods]
+                                   calibrated, config, geometry) for f in foods]
             for i, fut in enumerate(as_completed(futures), 1):
                 rec = fut.result()
                 records.append(rec)
