@@ -714,8 +714,19 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
         except EstimationError as exc:
             widths[k] = math.nan
             out.warnings.append(f"no {k} interval: {exc}")
-        out.intervals[k] = (est[k] * math.exp(-widths[k]), est[k] * math.exp(widths[k]))
+        out.intervals[k] = _log_width_interval(est[k], widths[k])
     out.details["error_half_width"] = widths
+
+
+def _log_width_interval(value: float, half_width: float) -> tuple[float, float]:
+    """``value * exp(+-half_width)``; (0, inf) where the half-width is too wide for a float
+    (an error model fitted on a user's own foods can predict one), NaN where it is NaN."""
+    if half_width > _MAX_LOG_HALF_WIDTH:
+        return 0.0, math.inf
+    return value * math.exp(-half_width), value * math.exp(half_width)
+
+
+_MAX_LOG_HALF_WIDTH = 700.0  # math.exp overflows a float just above 709
 
 
 def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometry | None = None,

@@ -137,6 +137,23 @@ def test_missing_diagnostics_leave_the_interval_nan_and_the_outcome_unreliable()
     assert any("no g1 interval" in w for w in out.warnings)
 
 
+def test_an_error_model_wider_than_a_float_gives_an_unbounded_interval() -> None:
+    """A multiplier large enough that exp(half-width) overflows (possible in a model fitted
+    on few or odd foods) gives (0, inf) and an unreliable outcome, not an OverflowError."""
+    model = fit_error_model(_synthetic_rows(200, 3))
+    wide = ErrorModel(model.centre, model.spread, model.coefficients,
+                      dict(model.multiplier, g1=1e6))
+    cal = Calibration({t: [0.0] * 8 for t in ("K_el", "g1", "tau1")}, error_model=wide)
+    row = _synthetic_rows(1, 4)[0]
+    out = ProbeOutcome(estimates=dict(ESTIMATE), visco_valid=True, friction_valid=True,
+                       wall_time=0.0, piece_index=0, details={"diagnostics": dict(row[3])},
+                       intervals={k: (v * 0.99, v * 1.01) for k, v in ESTIMATE.items()})
+    apply_calibration("cube", 0.015, cal, out)
+    assert out.intervals["g1"] == (0.0, math.inf)
+    assert math.isfinite(out.intervals["tau1"][1])
+    assert not out.reliable
+
+
 def test_held_out_tuning_foods_no_large_miss_is_reliable_and_coverage_holds() -> None:
     """The calibration and error model refitted four times, each without a quarter of the
     256 tuning foods: on the held-out foods, without and with 1 % noise, no food with a g1,
