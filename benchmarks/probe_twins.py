@@ -79,6 +79,7 @@ def summary_of(errors: np.ndarray) -> dict[str, Any]:
 
 
 def table(results: dict[str, dict[str, Any]]) -> str:
+    """The summary as a Markdown table, one row a parameter."""
     rows = ["| parameter | foods | twins' spread, median / 95th | abs error as placed, median / "
             "95th | abs error of the 4 placements' mean | variance within foods |",
             "|---|---|---|---|---|---|"]

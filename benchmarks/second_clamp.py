@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import hashlib
 import itertools
 import json
 import math
@@ -69,7 +70,13 @@ def run_variant(name: str, config: ProbeConfig, foods: list[Food], work: Path,
     """Uncalibrated records of one clamp (by ``config``, with ``geometry`` where given) on
     ``foods``, streamed to ``work`` and resumed by the harness's own runner; and why it
     stopped ("" when every food finished)."""
-    path = work / (name.replace(" ", "_") + ".jsonl")
+    # the settings name the file, so that records of other settings (an older preset, another
+    # geometry) are never resumed into this run
+    settings = json.dumps([dataclasses.asdict(config),
+                           None if geometry is None else dataclasses.asdict(geometry)],
+                          sort_keys=True)
+    tag = hashlib.sha256(settings.encode()).hexdigest()[:10]
+    path = work / f"{name.replace(' ', '_')}-{tag}.jsonl"
     done = ve._done_indices(path)
     records = list(done.values())
     todo = [f for f in foods if f.index not in done]
@@ -160,6 +167,9 @@ def parse_tuning_args(description: str, name: str, argv: list[str] | None
             or base["meta"].get("calibration") is not None or base["meta"]["preset"] != "measure":
         p.error(f"--base {args.base}: not an uncalibrated, noiseless tuning run of the "
                 f"measure preset on {args.n} foods")
+    if base["meta"].get("probe_config") != dataclasses.asdict(BASE):
+        p.error(f"--base {args.base}: made with other measure-probe settings than today's "
+                f"(meta.probe_config {base['meta'].get('probe_config')}); rerun it")
     args.work.mkdir(parents=True, exist_ok=True)
     return args, base["records"], sample_foods(args.n, TUNING_SEED)
 

@@ -23,6 +23,7 @@ Tune on ``--set tuning`` (seed ``TUNING_SEED``), report ``--set reporting``
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -481,6 +482,7 @@ def main(argv: list[str] | None = None) -> int:
             "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
             "cpus": os.cpu_count(), "python": platform.python_version(),
             "systematic_sd": dict(PROBE_SYSTEMATIC_SD),
+            "probe_config": dataclasses.asdict(PROBE_PRESETS[args.preset]),
             "calibration": PROBE_CALIBRATIONS[args.preset].to_dict() if calibrated else None,
             "command": "python benchmarks/validate_estimators.py " + " ".join(argv or sys.argv[1:])}
     records = list(done.values())

@@ -244,7 +244,7 @@ _COMMON_DOC = """
     | lift_height | 0.005 | lift distance [m] |
     | air_hold | 0.5 | hold in the air before counting fetched pieces [s] |
     | settle | 0.2 | settling on the plate before the clamp [s] |
-    | probes | "env" | reset probes' preset: "env" (6 s hold) or "measure" (20 s, 1.3x the cost) |
+    | probes | "env" | reset probes' preset: "env" (6 s hold) or "measure" (20 s, mu per blade) |
     | probe_hold | None | relaxation probe hold [s] (None: the preset's); of the order of tau1 |
     | probe_omega | None | relaxation probe's clamping angular velocity [rad/s] (preset: 0.1) |
     | probe_strain | None | relaxation probe's squeeze past first contact, share of width (0.06) |

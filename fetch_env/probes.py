@@ -66,7 +66,7 @@ import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -139,16 +139,18 @@ PROBE_SYSTEMATIC_SD: dict[str, float] = {"K1": 0.14, "K2": 0.10, "B": 0.11, "g1"
 ENVELOPE_QUANTILE = 0.99
 # How the slip probe's envelope reads the two half-spoons (ProbeConfig.slip_envelope):
 # "sum": the ratio of their summed forces; "per_blade": each half-spoon's own ratio, and the
-# lower of the two envelopes.  Coulomb bounds each half-spoon's ratio by mu, and each reaches
-# it whenever its own face slips, so the lower envelope is mu unless both faces misread
-# together.  What makes one face misread: a blade tip ploughing into a cube's face as the
-# blades slide (a few contacts on the tip's edge, whose normal is tilted ~50 degrees from the
-# face's, add their push to the tangential force; measured contact by contact on a 9 mm,
-# 0.024 MPa cube whose summed ratio read mu +45 %).  Chosen on the 256 tuning foods
-# (uncalibrated "measure" probes, median / 95th percentile of |mu error|): "sum" 0.26 /
-# 8.0 %, "per_blade" 0.09 / 4.2 % without noise; 2.05 / 7.9 % and 2.30 / 5.6 % with 1 %
-# noise (a lower quantile, or smoothing the forces first, did worse on the 95th percentile).
-SLIP_ENVELOPES: tuple[str, ...] = ("sum", "per_blade")
+# lower of the two envelopes, and likewise the lower of the two faces' plateaus.  Coulomb
+# bounds each half-spoon's ratio by mu, and each reaches it whenever its own face slips, so
+# the lower one reads mu unless both faces misread together.  What makes one face misread: a
+# blade tip ploughing into a cube's face as the blades slide (a few contacts on the tip's
+# edge, whose normal is tilted ~50 degrees from the face's, add their push to the tangential
+# force; measured contact by contact on a 9 mm, 0.024 MPa cube whose summed ratio read mu
+# +45 %).  Chosen on the 256 tuning foods (the committed uncalibrated "measure" runs, median /
+# 95th percentile of |mu error|): "sum" 0.26 / 8.04 %, "per_blade" 0.09 / 4.09 % without
+# noise; 2.06 / 9.46 % and 2.17 / 5.42 % with 1 % noise.  A lower quantile, the per-sample
+# lower face, or smoothing the forces first did worse on the 95th percentile.
+SlipEnvelope = Literal["sum", "per_blade"]
+SLIP_ENVELOPES: tuple[SlipEnvelope, ...] = ("sum", "per_blade")
 # The slip probe is sampled at every physics step (run_probes; at 5 ms, 200 Hz gave
 # estimate_friction the 20 samples of a 0.15 s slide; at 100 Hz only the envelope could be
 # used).  Seeds 5000-5191, |mu error| median / 75th / 95th percentile / max, 5 ms step: 0.3 s
@@ -208,7 +210,7 @@ class ProbeConfig:
     relaxation_impratio: float = 30.0
     slip_timestep: float = 0.01
     relaxation_timestep: float | None = None
-    slip_envelope: str = "sum"
+    slip_envelope: SlipEnvelope = "sum"
 
     def __post_init__(self) -> None:
         for name, (lo, hi, lo_open) in _PROBE_LIMITS.items():
@@ -499,7 +501,8 @@ def _visco_values(est: ViscoelasticEstimate | HoldEstimate) -> dict[str, float]:
 
 
 def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator | None = None,
-                diagnostics: dict[str, float] | None = None, envelope: str = "sum"
+                diagnostics: dict[str, float] | None = None,
+                envelope: SlipEnvelope = "sum"
                 ) -> tuple[float, list[str], tuple[float, float]]:
     """mu from a slip run, with a 95 % interval; raises :class:`EstimationError` when the
     trace cannot give it.
@@ -509,10 +512,11 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
     between ~0.05 and mu), and ``estimate_friction`` may then return a sticking plateau below
     mu; so mu is the larger of its estimate and the upper envelope of the ratio (its
     ``ENVELOPE_QUANTILE`` quantile over the last three quarters of the slide, where the
-    blades grip; with ``envelope="per_blade"`` each half-spoon's, the lower of the two, see
-    :data:`SLIP_ENVELOPES`).  The interval adds, on the log scale, the estimator's own
-    (noise) interval, the gap between the plateau and the envelope and between the two
-    half-spoons (model error), and ``PROBE_SYSTEMATIC_SD['mu']``.  ``noise`` (with ``rng``)
+    blades grip; with ``envelope="per_blade"`` each half-spoon's, the lower of the two, and
+    the lower of the two faces' plateaus, see :data:`SLIP_ENVELOPES`).  The interval adds,
+    on the log scale, the estimator's own (noise) interval, the gap between the plateau and
+    the envelope and between the two half-spoons (model error), and
+    ``PROBE_SYSTEMATIC_SD['mu']``.  ``noise`` (with ``rng``)
     adds white noise of that share of each force trace's peak first.  ``diagnostics`` (where
     given) receives the slide's (:func:`_mu_diagnostics`).
     """
@@ -533,14 +537,22 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
     if grip.sum() < 5:
         raise EstimationError("no steady grip during the slide (the blades lost the piece)")
     ratio = np.abs(tang[grip]) / normal[grip]
-    env = (_per_blade_envelope(f, late, grip) if envelope == "per_blade"
-           else float(np.quantile(ratio, ENVELOPE_QUANTILE)))
     warns: list[str] = []
+    env = float(np.quantile(ratio, ENVELOPE_QUANTILE))
+    if envelope == "per_blade":
+        per_blade = _per_blade_envelope(f, late, grip)
+        if per_blade is None:
+            warns.append("fewer than 5 samples where both half-spoons grip: mu from the summed "
+                         "forces' envelope")
+        else:
+            env = per_blade
     est = None
     try:
         est = estimate_friction(tr["t"], *(f[k] for k in keys),
                                 slide_start=float(tr["t"][slide][0]))
         plateau = float(est.mu)
+        if envelope == "per_blade" and est.mu_left > 0 and est.mu_right > 0:
+            plateau = min(float(est.mu_left), float(est.mu_right))
         warns += list(est.warnings)
     except (EstimationError, ArithmeticError) as exc:
         # Its plateau test is strict for a short slide (the ratio drifts by ~1 % as the
@@ -562,10 +574,11 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
     return mu, warns, log_interval(mu, sd)
 
 
-def _per_blade_envelope(f: dict[str, np.ndarray], late: np.ndarray, grip: np.ndarray) -> float:
+def _per_blade_envelope(f: dict[str, np.ndarray], late: np.ndarray, grip: np.ndarray
+                        ) -> float | None:
     """The lower of the two half-spoons' ``ENVELOPE_QUANTILE`` envelopes of their own force
     ratio, over the late slide's samples where both grip (each above 5 % of its own peak);
-    the summed forces' envelope where fewer than 5 such samples exist."""
+    None where fewer than 5 such samples exist."""
     both = grip.copy()
     ratios = []
     for side in ("left", "right"):
@@ -573,9 +586,7 @@ def _per_blade_envelope(f: dict[str, np.ndarray], late: np.ndarray, grip: np.nda
         both &= n > 0.05 * max(float(n.max()), 1e-12)
         ratios.append((n, np.abs(t)))
     if both.sum() < 5:
-        n = ratios[0][0] + ratios[1][0]
-        t = ratios[0][1] + ratios[1][1]
-        return float(np.quantile(t[grip] / n[grip], ENVELOPE_QUANTILE))
+        return None
     return min(float(np.quantile(t[both] / n[both], ENVELOPE_QUANTILE)) for n, t in ratios)
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -161,12 +162,27 @@ def twins_section() -> str:
             f"{100 * tau1['spread']['median']:.2f} % between twins, against median misses of "
             f"{100 * g1['as_placed']['median']:.2f} and {100 * tau1['as_placed']['median']:.2f} "
             f"%: {100 * g1['within_share']:.0f} and {100 * tau1['within_share']:.0f} % of their "
-            "error variance lies within foods.  Their misses are a bias of each food that the "
-            "single-piece `measure` probe repeats exactly, so a repeated probe neither shrinks "
-            "them nor flags them (unlike the study's real-time probe on its cube, below, whose "
-            "1 um twins spread by several per cent).  mu's misses are partly chaos "
-            f"({100 * mu['within_share']:.0f} % within foods): the slide's contacts change "
-            "with the placement.\n\n")
+            f"error variance lies within foods.  {_chaos_or_bias(g1, tau1)}  mu's misses are "
+            f"{_share_words(mu['within_share'])} ({100 * mu['within_share']:.0f} % within "
+            "foods).\n\n")
+
+
+def _share_words(share: float) -> str:
+    """How much of a miss is chaos, in words, from its within-food variance share."""
+    if share < 0.1:
+        return "a bias of each food"
+    return "mostly chaos" if share > 0.5 else "partly chaos"
+
+
+def _chaos_or_bias(g1: dict[str, Any], tau1: dict[str, Any]) -> str:
+    """What the twins say of g1's and tau1's misses."""
+    if max(g1["within_share"], tau1["within_share"]) < 0.1:
+        return ("Their misses are a bias of each food that the single-piece `measure` probe "
+                "repeats, so a repeated probe neither shrinks them nor flags them (unlike the "
+                "study's real-time probe on its cube, below, whose 1 um twins spread by "
+                "several per cent).")
+    return ("Part of their misses is chaos of the simulated contact, which repeating the probe "
+            "on twins and averaging would shrink.")
 
 
 def second_clamp_section() -> str:

@@ -39,7 +39,7 @@ def test_pure_chaos_lies_within_foods_and_averages_down() -> None:
 def test_log_errors_keep_only_foods_every_placement_measured() -> None:
     truth = {"g1": 0.4}
 
-    def rec(ratio: float) -> dict:
+    def rec(ratio: float) -> dict[str, dict[str, float]]:
         return {"truth": truth, "estimate": {"g1": 0.4 * ratio}}
 
     held = {"as placed": {0: rec(1.1), 1: rec(1.0), 2: rec(1.0)},

@@ -566,8 +566,9 @@ PROBE_FIELDS = [f.name for f in fields(ProbeConfig) if f.name != "relaxation_tim
 
 @pytest.mark.parametrize("value", [math.nan, math.inf, -1.0, "0.1"])
 def test_probe_config_rejects_bad_settings(value: Any) -> None:
-    """A probe setting that is no finite, non-negative number is refused at construction
-    (explicit cases: a known-failing Hypothesis test would write a patch file every run)."""
+    """A probe setting given something that is no finite, non-negative number is refused at
+    construction, naming the setting (``slip_envelope``, a name, refuses these too; explicit
+    cases: a known-failing Hypothesis test would write a patch file every run)."""
     for name in PROBE_FIELDS:
         with pytest.raises(InvalidParameterError) as exc_info:
             ProbeConfig(**{name: value})
