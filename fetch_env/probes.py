@@ -655,18 +655,25 @@ def _relaxation_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | No
     out.visco_valid = True
 
 
-def _slip_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | None, noise: float,
-                rng: np.random.Generator, out: ProbeOutcome, keep_traces: bool) -> None:
-    """Run the induced-slip probe on ``piece`` and put its estimate of mu into ``out``."""
-    # every step (and at least the simulator's 100 Hz)
+def slip_run(piece: Piece, config: ProbeConfig, geometry: Geometry | None = None) -> SimResult:
+    """The induced-slip probe's run on ``piece`` with ``config``'s slip settings: a clamp to
+    ``slip_strain`` past first contact, a short hold and the slide, recorded at every physics
+    step (and at least the simulator's 100 Hz); :func:`estimate_mu` reads it."""
+    _check_probe_args(piece, config, geometry)
     sim = FetchSimulator((piece,), geometry, record_hz=max(100.0, 1.0 / config.slip_timestep),
                          timestep=config.slip_timestep)
     theta_d = probe_angle(sim, config.slip_strain, "slip")
     action = FetchAction(theta_d=theta_d, omega=config.slip_omega, hold=config.slip_hold,
                          settle=config.settle, slide_distance=config.slide_distance,
                          slide_time=config.slide_time)
-    res = sim.run("slip", action)
-    out.details["slip_action"] = action.to_dict()
+    return sim.run("slip", action)
+
+
+def _slip_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | None, noise: float,
+                rng: np.random.Generator, out: ProbeOutcome, keep_traces: bool) -> None:
+    """Run the induced-slip probe on ``piece`` and put its estimate of mu into ``out``."""
+    res = slip_run(piece, config, geometry)
+    out.details["slip_action"] = res.action.to_dict()
     if keep_traces:
         out.traces["slip"] = res.traces
     fit_start, cpu_start = time.perf_counter(), time.process_time()

@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator, SimResult
+from fetch_env.controller import PHASE_CODE, FetchAction, SimResult
 from fetch_env.errors import InvalidParameterError
 from fetch_env.food_space import Food, sample_foods
-from fetch_env.probes import PROBE_PRESETS, SLIP_ENVELOPES, ProbeConfig, estimate_mu, probe_angle
+from fetch_env.probes import PROBE_PRESETS, SLIP_ENVELOPES, ProbeConfig, estimate_mu, slip_run
 
 MU = 0.3
 N_SLIDE = 40
@@ -98,15 +98,9 @@ def test_the_envelope_setting_is_validated() -> None:
 CHECK_SEED = 3000
 
 
-def slip_run(food: Food) -> SimResult:
+def slip_run_of(food: Food) -> SimResult:
     """The measure preset's slip probe on ``food``."""
-    cfg = PROBE_PRESETS["measure"]
-    sim = FetchSimulator((food.piece(),), record_hz=1.0 / cfg.slip_timestep,
-                         timestep=cfg.slip_timestep)
-    action = FetchAction(theta_d=probe_angle(sim, cfg.slip_strain, "slip"),
-                         omega=cfg.slip_omega, hold=cfg.slip_hold, settle=cfg.settle,
-                         slide_distance=cfg.slide_distance, slide_time=cfg.slide_time)
-    return sim.run("slip", action)
+    return slip_run(food.piece(), PROBE_PRESETS["measure"])
 
 
 @pytest.mark.filterwarnings("ignore::fetch_env.errors.ParameterClippedWarning")
@@ -118,7 +112,7 @@ def test_simulated_foods_read_closer_per_blade() -> None:
     25 of the 64, and its worst reads -33 % where the summed rule reads -17 %."""
     errors: dict[str, list[float]] = {e: [] for e in SLIP_ENVELOPES}
     for food in sample_foods(64, CHECK_SEED):
-        run = slip_run(food)
+        run = slip_run_of(food)
         for e in SLIP_ENVELOPES:
             errors[e].append(abs(estimate_mu(run, envelope=e)[0] / food.mu - 1))
     per_blade, summed = np.array(errors["per_blade"]), np.array(errors["sum"])
