@@ -538,14 +538,11 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
         raise EstimationError("no steady grip during the slide (the blades lost the piece)")
     ratio = np.abs(tang[grip]) / normal[grip]
     warns: list[str] = []
-    env = float(np.quantile(ratio, ENVELOPE_QUANTILE))
-    if envelope == "per_blade":
-        per_blade = _per_blade_envelope(f, late, grip)
-        if per_blade is None:
-            warns.append("fewer than 5 samples where both half-spoons grip: mu from the summed "
-                         "forces' envelope")
-        else:
-            env = per_blade
+    per_blade = _per_blade_envelope(f, late, grip) if envelope == "per_blade" else None
+    if envelope == "per_blade" and per_blade is None:
+        warns.append("fewer than 5 samples where both half-spoons grip: mu from the summed "
+                     "forces' envelope")
+    env = float(np.quantile(ratio, ENVELOPE_QUANTILE)) if per_blade is None else per_blade
     est = None
     try:
         est = estimate_friction(tr["t"], *(f[k] for k in keys),
