@@ -7,9 +7,12 @@ uncalibrated (``probe_calibrated``) and with the ``measure`` probes calibrated
 |model / oracle - 1| (g1, tau1 and mu: the material's, exact; K1, K2, B: the oracle's
 nominal ``2 E A / l``, so only their scatter means much), the probes' median wall time per
 reset and the reset's median CPU time (this process's, so the machine's load does not
-enter).  Writes JSON and a markdown table.
+enter).  Writes JSON and a markdown table.  The scenes are the "study" space's (the -v0
+ids'); ``--scenes`` draws another space's (``fetch_env.env_scenes.SCENE_SPACES``) and
+names the files after it.
 
     python benchmarks/bench_env_estimates.py --workers 2 --out docs/data/validation
+    python benchmarks/bench_env_estimates.py --layouts row --scenes any_shape --workers 2
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from agents.atomic import write_atomic
 from fetch_env.env import FoodFetchEnv
+from fetch_env.env_scenes import SCENE_SPACES
 from fetch_env.probes import PARAM_NAMES
 
 LAYOUTS = {"block": 64, "row": 32, "two_rows": 32, "diced": 32}
@@ -40,11 +44,12 @@ FIRST_SEED = 90_000
 VARIANTS: tuple[tuple[str, bool], ...] = (("env", True), ("env", False), ("measure", True))
 
 
-def run(layout: str, probes: str, calibrated: bool, seeds: list[int]) -> dict[str, Any]:
+def run(layout: str, probes: str, calibrated: bool, seeds: list[int],
+        scenes: str = "study") -> dict[str, Any]:
     """Reset on every seed; the errors per parameter, the probes' wall times and the
     resets' CPU times."""
     env = FoodFetchEnv(layout=layout, estimator="model", probes=probes,
-                       probe_calibrated=calibrated)
+                       probe_calibrated=calibrated, scenes=scenes)
     errs: dict[str, list[float]] = {k: [] for k in PARAM_NAMES}
     walls, cpus = [], []
     for seed in seeds:
@@ -55,7 +60,7 @@ def run(layout: str, probes: str, calibrated: bool, seeds: list[int]) -> dict[st
         for k in PARAM_NAMES:
             est = info["estimated_params"][k]
             errs[k].append(float("nan") if est is None else est / info["true_params"][k] - 1)
-    return {"layout": layout, "probes": probes, "calibrated": calibrated,
+    return {"layout": layout, "scenes": scenes, "probes": probes, "calibrated": calibrated,
             "seeds": [seeds[0], seeds[-1]], "errors": errs,
             "wall_median": float(np.median(walls)), "reset_cpu_median": float(np.median(cpus))}
 
@@ -94,10 +99,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--out", type=Path, default=Path("docs/data/validation"))
     p.add_argument("--layouts", nargs="+", choices=sorted(LAYOUTS), default=list(LAYOUTS))
+    p.add_argument("--scenes", choices=SCENE_SPACES, default="study",
+                   help="scene space drawn at reset (default: the -v0 ids' study space)")
     args = p.parse_args(argv)
     if args.workers < 1:
         p.error("--workers must be >= 1")
-    jobs = [(lay, probes, cal, list(range(FIRST_SEED, FIRST_SEED + LAYOUTS[lay])))
+    jobs = [(lay, probes, cal, list(range(FIRST_SEED, FIRST_SEED + LAYOUTS[lay])), args.scenes)
             for lay in args.layouts for probes, cal in VARIANTS]
     with ProcessPoolExecutor(args.workers) as pool:
         results = list(pool.map(run, *zip(*jobs, strict=True)))
@@ -108,9 +115,10 @@ def main(argv: list[str] | None = None) -> int:
         r["summary"] = {k: summary(r["errors"][k]) for k in PARAM_NAMES}
     args.out.mkdir(parents=True, exist_ok=True)
     text = json.dumps({"meta": meta, "results": results}, indent=1)
-    write_atomic(args.out / "env_estimates.json", text)
+    name = "env_estimates" if args.scenes == "study" else f"env_estimates_{args.scenes}"
+    write_atomic(args.out / f"{name}.json", text)
     md = table(results)
-    write_atomic(args.out / "env_estimates.md", md)
+    write_atomic(args.out / f"{name}.md", md)
     print(md)
     return 0
 

@@ -49,6 +49,7 @@ ENV_IDS: dict[str, str] = {
     "FoodFetch-Row-v1": "fetch_env.env_v1:FoodFetchRowV1Env",
     "FoodFetch-TwoRows-v1": "fetch_env.env_v1:FoodFetchTwoRowsV1Env",
     "FoodFetch-Diced-v1": "fetch_env.env_v1:FoodFetchDicedV1Env",
+    "FoodFetch-Row-v2": "fetch_env.env_v2:FoodFetchRowV2Env",
     "FoodFetch-TwoRows-v2": "fetch_env.env_v2:FoodFetchTwoRowsV2Env",
 }
 

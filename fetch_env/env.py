@@ -25,6 +25,7 @@ from gymnasium import spaces
 from fetch_env import clipping
 from fetch_env.controller import FetchAction, FetchSimulator, SimResult, fetch_hold_time_scale
 from fetch_env.env_scenes import (
+    ANY_SHAPE_SAMPLING,
     LAYOUTS,
     RESOLVED_SAMPLING,
     SAMPLING,
@@ -104,7 +105,8 @@ VERSION_DEFAULTS: dict[str, dict[str, Any]] = {
 }
 # The sampling table each scene space's docstring lists.
 _SPACE_SAMPLING: dict[str, dict[str, dict[str, Any]]] = {
-    "study": SAMPLING, "wide": WIDE_SAMPLING, "resolved": RESOLVED_SAMPLING}
+    "study": SAMPLING, "wide": WIDE_SAMPLING, "resolved": RESOLVED_SAMPLING,
+    "any_shape": ANY_SHAPE_SAMPLING}
 RESET_OPTIONS: tuple[str, ...] = ("preset", "pieces")
 _CACHE_SIZE = 8  # compiled scenes (and probe outcomes) kept per env, least recently used out
 
@@ -235,7 +237,7 @@ _COMMON_DOC = """
     | safe_log_strain | 0.34 | LE below which there is no penalty |
     | time_weight | {time_weight} | cost per second of clamp, hold and lift |
     | damage | "{damage}" | "worst" (worst piece) or "per_piece" (share-weighted sum) |
-    | scenes | "{scenes}" | scene space drawn at reset: "study", "wide", "resolved" (Description) |
+    | scenes | "{scenes}" | scene space drawn at reset: "study", "wide", "resolved", "any_shape" |
     | fetch_by_mass | False | reward the fetched mass share instead of the count share |
     | hold | 0.5 | hold at theta_d before lifting [s] |
     | lift_at_settling | False | hold until the estimated moment settling time t_s instead |
@@ -244,7 +246,7 @@ _COMMON_DOC = """
     | lift_height | 0.005 | lift distance [m] |
     | air_hold | 0.5 | hold in the air before counting fetched pieces [s] |
     | settle | 0.2 | settling on the plate before the clamp [s] |
-    | probes | "env" | reset probes' preset: "env" (6 s hold) or "measure" (20 s, mu per blade) |
+    | probes | "{probes}" | reset probes' preset: "env" (6 s hold), "measure" (20 s, mu per blade) |
     | probe_hold | None | relaxation probe hold [s] (None: the preset's); of the order of tau1 |
     | probe_omega | None | relaxation probe's clamping angular velocity [rad/s] (preset: 0.1) |
     | probe_strain | None | relaxation probe's squeeze past first contact, share of width (0.06) |
@@ -298,7 +300,16 @@ _COMMON_DOC = """
     the episodes per core; for training and large evaluations, pass both.
 
     ## Version history
-    - v2 (0.2.0, TwoRows only): the v1 rewards on the "resolved" scene space
+    - v2 (0.2.0, Row): rows of any shape (cube, ellipsoid, sphere) and of 8-22 mm
+      (``scenes="any_shape"``), so that the clamp angle must follow the row: every row of
+      v1's 8-14 mm cubes was held and spared by the lightest touch, one constant action.
+      The observations come from the ``measure`` probes (``probes="measure"``: a 20 s hold,
+      mu read per half-spoon; on 32 held-back rows of the id, median / 95th-percentile
+      errors g1 1.4 / 7.2 %, tau1 3.0 / 29.3 %, mu 0.4 / 7.6 % against the ``env``
+      probes' 2.2 / 29.0, 5.2 / 50.0 and 1.2 / 8.8 %, for 1.36x the reset's CPU time;
+      ``benchmarks/bench_env_estimates.py --scenes any_shape``).  Physics, actions,
+      observation names and rewards are those of v1.
+    - v2 (0.2.0, TwoRows): the v1 rewards on the "resolved" scene space
       (``scenes="resolved"``): a two-row plate's softest level is 0.06 MPa instead of
       0.0123 MPa, whose packed cubes the simulator does not resolve (their outcome changes
       with the step and impratio, so a fifth of v1's scenes were a lottery no agent
@@ -332,10 +343,12 @@ def _obs_table() -> str:
         for i, n in enumerate(OBS_NAMES))
 
 
-def _docstring(title: str, description: str, layout: str, version: str = "v0") -> str:
+def _docstring(title: str, description: str, layout: str, version: str = "v0",
+               **overrides: str) -> str:
     """An id's docstring: its description and scene ranges, then the common reference with
-    the version's defaults (``VERSION_DEFAULTS``) and its version history."""
-    defaults = VERSION_DEFAULTS[version]
+    the version's defaults (``VERSION_DEFAULTS``, with the id's ``overrides``) and its
+    version history."""
+    defaults = {**VERSION_DEFAULTS[version], "probes": "env", **overrides}
     sampling = _SPACE_SAMPLING[defaults["scenes"]]
     ranges = "\n".join(f"    - {k}: {v}" for k, v in sampling[layout].items())
     body = _COMMON_DOC.format(
@@ -784,17 +797,18 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
             time.sleep(1.0 / self.metadata["render_fps"])
 
 
-def _with_defaults(default: str, version: str = "v0") -> Callable[..., None]:
+def _with_defaults(default: str, version: str = "v0", **overrides: str) -> Callable[..., None]:
     """An ``__init__`` for a registered id's class: :class:`FoodFetchEnv`'s with ``layout``
-    defaulting to the id's scene family and the reward and scene arguments to its version's
-    (``VERSION_DEFAULTS``); every other argument passed through."""
-    d = VERSION_DEFAULTS[version]
+    defaulting to the id's scene family, the reward and scene arguments to its version's
+    (``VERSION_DEFAULTS``) and ``probes`` to "env", each replaced by the id's ``overrides``
+    (the same as given to :func:`_docstring`); every other argument passed through."""
+    d = {**VERSION_DEFAULTS[version], "probes": "env", **overrides}
 
     def __init__(self: FoodFetchEnv, layout: str = default,
                  time_weight: float = d["time_weight"], damage: str = d["damage"],
-                 scenes: str = d["scenes"], **kwargs: Any) -> None:
+                 scenes: str = d["scenes"], probes: str = d["probes"], **kwargs: Any) -> None:
         FoodFetchEnv.__init__(self, layout=layout, time_weight=time_weight, damage=damage,
-                              scenes=scenes, **kwargs)
+                              scenes=scenes, probes=probes, **kwargs)
 
     return __init__
 

@@ -61,7 +61,7 @@ SAMPLING: dict[str, dict[str, Any]] = {
 # (fetch_env.food_space: 8-25 mm, 0.0123-5 MPa, g1 0.1-0.8, tau1 0.5-10 s, mu 0.1-0.8), so
 # that slippery, very soft, stiff, small and large pieces all occur and no single fixed
 # action is near the best on every scene (the study's scenes vary only the layout).
-SCENE_SPACES: tuple[str, ...] = ("study", "wide", "resolved")
+SCENE_SPACES: tuple[str, ...] = ("study", "wide", "resolved", "any_shape")
 WIDE_ROW_SIZE_RANGE = (0.008, 0.014)  # [m] three 14 mm cubes still fit the 48 mm blades
 WIDE_TWO_ROWS_SIZE_RANGE = (0.008, 0.012)  # [m]
 WIDE_DICED_SIZE_RANGE = (0.007, 0.012)  # [m]
@@ -74,6 +74,16 @@ WIDE_DICED_SIZE_RANGE = (0.007, 0.012)  # [m]
 # tuning plates, 0.0123 MPa's on 7 and 4 (benchmarks/very_soft_plates.py --levels).  Every
 # other layout is drawn as in the wide space.
 RESOLVED_TWO_ROWS_YOUNG: tuple[float, ...] = (200e6, 40e6, 5e6, 0.15e6, 0.06e6)  # [Pa]
+
+# The "any_shape" scene space (FoodFetch-Row-v2): the resolved space with rows of any shape and
+# of the food space's sizes that fit the blades.  Rows of 8-14 mm cubes (Row-v1) are all
+# held and spared by the lightest touch (0.03 rad), because the half-spoons' V holds a cube
+# pressed at its bottom edges; a round piece is touched only nearer its equator, so a large
+# sphere or ellipsoid needs a deeper angle (0.06-0.07 rad at 20 mm) that crushes a small
+# soft one (docs/agents.md, "How much choosing the angle is worth").  Three pieces are drawn
+# only where three fit ANY_SHAPE_ROW_WIDTH, inside the 48 mm blades.
+ANY_SHAPE_ROW_SIZE_RANGE = (0.008, 0.022)  # [m]
+ANY_SHAPE_ROW_WIDTH = 0.044  # [m] widest row drawn: 2 mm of blade left each side
 
 WIDE_SAMPLING: dict[str, dict[str, Any]] = {
     "block": {"shape": SHAPES, "size_m": food_space.SIZE_RANGE,
@@ -92,6 +102,13 @@ WIDE_SAMPLING: dict[str, dict[str, Any]] = {
 RESOLVED_SAMPLING: dict[str, dict[str, Any]] = {
     **WIDE_SAMPLING,
     "two_rows": {**WIDE_SAMPLING["two_rows"], "young_pa": RESOLVED_TWO_ROWS_YOUNG},
+}
+ANY_SHAPE_SAMPLING: dict[str, dict[str, Any]] = {
+    **RESOLVED_SAMPLING,
+    "row": {"shape": SHAPES, "size_m": ANY_SHAPE_ROW_SIZE_RANGE,
+            "spacing_across_m": ROW_SPACINGS,
+            "n": f"2 or 3, 3 only where the row fits {ANY_SHAPE_ROW_WIDTH * 1000:g} mm",
+            "material": "as block"},
 }
 
 
@@ -118,11 +135,28 @@ def sample_wide_material(rng: np.random.Generator, young: float | None = None) -
         mu=float(rng.uniform(*food_space.MU_RANGE)), plate_mu=PLATE_MU, name="sampled")
 
 
+def sample_any_shape_row(rng: np.random.Generator) -> tuple[Piece, ...]:
+    """A row of the "any_shape" space (:data:`ANY_SHAPE_SAMPLING`): two or three equal pieces
+    of one shape and material side by side across the clamp direction."""
+    shape = str(rng.choice(SHAPES))
+    size = float(rng.uniform(*ANY_SHAPE_ROW_SIZE_RANGE))
+    spacing = float(rng.choice(ROW_SPACINGS))
+    # every shape's extent across the clamp (x) is its size
+    n_max = 3 if 3 * size + 2 * spacing <= ANY_SHAPE_ROW_WIDTH else 2
+    n = int(rng.integers(2, n_max + 1))
+    return grid(1, n, size, 0.001, spacing, sample_wide_material(rng),
+                shape=shape)  # type: ignore[arg-type]
+
+
 def sample_wide_scene(layout: str, rng: np.random.Generator,
-                      two_rows_young: tuple[float, ...] | None = None) -> tuple[Piece, ...]:
+                      two_rows_young: tuple[float, ...] | None = None,
+                      any_shape_rows: bool = False) -> tuple[Piece, ...]:
     """Draw a scene of ``layout`` from the wide space (:data:`WIDE_SAMPLING`) with ``rng``;
     ``two_rows_young`` [Pa] replaces the study's five levels of a two-row plate (the
-    "resolved" space's :data:`RESOLVED_TWO_ROWS_YOUNG`)."""
+    "resolved" space's :data:`RESOLVED_TWO_ROWS_YOUNG`), ``any_shape_rows`` draws a row
+    with :func:`sample_any_shape_row` (the "any_shape" space)."""
+    if layout == "row" and any_shape_rows:
+        return sample_any_shape_row(rng)
     if layout == "block":
         shape = str(rng.choice(SHAPES))
         size = float(rng.uniform(*food_space.SIZE_RANGE))
@@ -155,15 +189,17 @@ def sample_wide_scene(layout: str, rng: np.random.Generator,
 def sample_scene(layout: str, rng: np.random.Generator,
                  scenes: str = "study") -> tuple[Piece, ...]:
     """Draw a scene of ``layout`` from the documented ranges of ``scenes`` (the -v0 ids'
-    "study" space or the -v1 ids' "wide" one), using only ``rng``."""
+    "study" space, the -v1 ids' "wide" one, TwoRows-v2's "resolved" one or Row-v2's
+    "any_shape" one), using only ``rng``."""
     require(isinstance(layout, str) and layout in LAYOUTS, "layout", layout, f"one of {LAYOUTS}")
     require_type("rng", rng, np.random.Generator, "a numpy.random.Generator")
     require(isinstance(scenes, str) and scenes in SCENE_SPACES, "scenes", scenes,
             f"one of {SCENE_SPACES}")
     if scenes == "wide":
         return sample_wide_scene(layout, rng)
-    if scenes == "resolved":
-        return sample_wide_scene(layout, rng, RESOLVED_TWO_ROWS_YOUNG)
+    if scenes in ("resolved", "any_shape"):
+        return sample_wide_scene(layout, rng, RESOLVED_TWO_ROWS_YOUNG,
+                                 any_shape_rows=scenes == "any_shape")
     if scenes != "study":
         raise InvalidParameterError(f"scenes must be one of {SCENE_SPACES}, got {scenes!r}")
     if layout == "block":

@@ -1,17 +1,38 @@
-"""The -v2 environments: the -v1 rewards on scenes the simulator resolves.
+"""The -v2 environments: the -v1 rewards on scenes that leave room to choose the action.
 
 FoodFetch-TwoRows-v1 draws one plate in five from the study's 0.0123 MPa level, whose packed
 cubes the simulator does not resolve: their outcome changes with the time step and impratio,
-so that fifth of the id's mean is a lottery no agent controls (docs/agents.md).  The -v2 id
-keeps v1's physics, probes, actions, observations and rewards and draws its plates from the
-"resolved" scene space (``fetch_env.env_scenes.RESOLVED_TWO_ROWS_YOUNG``).
+so that fifth of the id's mean is a lottery no agent controls (docs/agents.md).
+FoodFetch-TwoRows-v2 keeps v1's physics, probes, actions, observations and rewards and draws
+its plates from the "resolved" scene space (``fetch_env.env_scenes.RESOLVED_TWO_ROWS_YOUNG``).
+
+FoodFetch-Row-v1 is solved by one constant action: every row of its 8-14 mm cubes is held
+and spared by the lightest touch.  FoodFetch-Row-v2 draws rows of any shape and of 8-22 mm
+(the "any_shape" scene space, ``fetch_env.env_scenes.sample_any_shape_row``), whose best
+angle follows the row, and observes them with the ``measure`` probes.
 """
 
 from __future__ import annotations
 
 from fetch_env.env import FoodFetchEnv, _docstring, _with_defaults
 
-__all__ = ["FoodFetchTwoRowsV2Env"]
+__all__ = ["FoodFetchRowV2Env", "FoodFetchTwoRowsV2Env"]
+
+
+class FoodFetchRowV2Env(FoodFetchEnv):
+    __doc__ = _docstring(
+        "FoodFetch-Row-v2: fetch a row of pieces of any shape, size and food.",
+        "Two or three equal pieces (cube, ellipsoid or sphere; 8 to 22 mm, three only where "
+        "they fit 44 mm) side by side across the clamp direction at one of the study's "
+        "spacings, of one material from the food space; every piece held counts and every "
+        "piece crushed costs its share.  The half-spoons close in a V about a hinge above "
+        "the food: a cube is held by the lightest touch at its bottom edges, a round piece "
+        "only nearer its equator, so a large sphere needs a deeper angle that crushes a small "
+        "soft piece, and the angle must follow the row's shape and size.  The observations "
+        "come from the ``measure`` probes (``probes=\"measure\"``).",
+        "row", "v2", scenes="any_shape", probes="measure")
+
+    __init__ = _with_defaults("row", "v2", scenes="any_shape", probes="measure")
 
 
 class FoodFetchTwoRowsV2Env(FoodFetchEnv):

@@ -264,6 +264,18 @@ def step_convergence_section() -> str:
             f"Command: `{data['meta']['command'].strip()}`.\n\n" + table.read_text() + "\n")
 
 
+def any_shape_rows_section() -> str:
+    """FoodFetch-Row-v2's rows (the "any_shape" space) under both probe presets."""
+    path = DATA / "env_estimates_any_shape.json"
+    if not path.exists():
+        return ""
+    data = json.loads(path.read_text())
+    return ("FoodFetch-Row-v2's rows (`scenes=\"any_shape\"`: any shape, 8-22 mm), which that "
+            "id observes with the `measure` probes; the same seeds and columns. "
+            f"Command: `{data['meta']['command'].strip()}`.\n\n"
+            + env_table(data["results"]) + "\n")
+
+
 def main() -> int:
     parts = [HEAD]
     for stem, title in RUNS:
@@ -296,6 +308,7 @@ def main() -> int:
                      "`env` probes' on the same layout. "
                      f"Command: `{data['meta']['command'].strip()}`.\n\n")
         parts.append(env_table(data["results"]) + "\n")
+    parts.append(any_shape_rows_section())
     floor = ROOT / "docs" / "data" / "study_food" / "floor.md"
     if floor.exists():
         meta = json.loads(floor.with_suffix(".json").read_text())["meta"]

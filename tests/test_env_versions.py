@@ -1,4 +1,5 @@
-"""The -v0 and -v1 ids: -v0 unchanged, -v1's reward terms and scene space as documented.
+"""The versions: -v0 unchanged, -v1's reward terms and scene space, the -v2 ids' scene spaces,
+as documented.
 
 ``tests/data/v0_reference.json`` holds what every -v0 id gave on fixed seeds (default
 kwargs, the model estimator, one seeded random action) before the -v1 ids existed; the
@@ -19,6 +20,8 @@ import fetch_env
 from fetch_env import food_space
 from fetch_env.env import VERSION_DEFAULTS, physical_to_action
 from fetch_env.env_scenes import (
+    ANY_SHAPE_ROW_SIZE_RANGE,
+    ANY_SHAPE_ROW_WIDTH,
     RESOLVED_TWO_ROWS_YOUNG,
     WIDE_DICED_SIZE_RANGE,
     WIDE_ROW_SIZE_RANGE,
@@ -29,6 +32,7 @@ from fetch_env.errors import InvalidParameterError
 from fetch_env.layouts import Piece
 from fetch_env.materials import PRESETS, STUDY_LEVELS, Material
 from fetch_env.rewards import damage_excess, fetch_duration, piece_excess
+from fetch_env.scene import Geometry
 
 REFERENCE = json.loads((Path(__file__).parent / "data" / "v0_reference.json").read_text())
 V1_IDS = [i for i in fetch_env.ENV_IDS if i.endswith("-v1")]
@@ -167,16 +171,49 @@ def test_wide_multi_piece_scenes_vary_friction_and_stay_in_their_ranges(
         assert {p.material.young for s in scenes for p in s} == levels
 
 
-def test_every_v2_id_is_its_v1_id_on_the_resolved_scenes() -> None:
+# id -> (scene space, probes) where a -v2 id differs from its -v1 id
+V2_CHANGES = {"FoodFetch-Row-v2": ("any_shape", "measure"),
+              "FoodFetch-TwoRows-v2": ("resolved", "env")}
+
+
+def test_every_v2_id_is_its_v1_id_with_its_documented_changes() -> None:
     v2 = [i for i in fetch_env.ENV_IDS if i.endswith("-v2")]
-    assert v2 == ["FoodFetch-TwoRows-v2"]
+    assert sorted(v2) == sorted(V2_CHANGES)
     for env_id in v2:
         u = gym.make(env_id, estimator="none").unwrapped
         v1 = gym.make(env_id.replace("-v2", "-v1"), estimator="none").unwrapped
-        assert (u.time_weight, u.damage, u.scenes) == tuple(VERSION_DEFAULTS["v2"].values())
+        assert (u.time_weight, u.damage) == (VERSION_DEFAULTS["v2"]["time_weight"],
+                                             VERSION_DEFAULTS["v2"]["damage"])
         assert (u.time_weight, u.damage, u.layout) == (v1.time_weight, v1.damage, v1.layout)
-        assert (u.scenes, v1.scenes) == ("resolved", "wide")
-        assert type(u).__doc__.startswith(env_id)
+        assert (u.scenes, u.probes) == V2_CHANGES[env_id]
+        assert (v1.scenes, v1.probes) == ("wide", "env")
+        doc = type(u).__doc__
+        assert doc.startswith(env_id)
+        assert f'| scenes | "{u.scenes}" |' in doc and f'| probes | "{u.probes}" |' in doc
+
+
+def test_any_shape_rows_span_shapes_and_sizes_and_fit_the_blades() -> None:
+    """Row-v2's rows: every shape, sizes over 8-22 mm, three pieces only where three fit
+    44 mm (and then as often as two), one shape, size and material per row; every other
+    layout as the resolved space draws it."""
+    rng = np.random.default_rng(11)
+    scenes = [sample_scene("row", rng, "any_shape") for _ in range(600)]
+    assert {s[0].shape for s in scenes} == {"cube", "ellipsoid", "sphere"}
+    _covers([s[0].size for s in scenes], *ANY_SHAPE_ROW_SIZE_RANGE)
+    _covers([s[0].material.mu for s in scenes], *food_space.MU_RANGE)
+    _covers([s[0].material.young for s in scenes], *food_space.YOUNG_RANGE, log=True)
+    for s in scenes:
+        assert len({(p.shape, p.size, p.material) for p in s}) == 1
+        assert len({p.y for p in s}) == 1  # one row across the clamp
+        width = max(p.x + p.size / 2 for p in s) - min(p.x - p.size / 2 for p in s)
+        assert len(s) in (2, 3) and width <= Geometry().blade_width - 0.002
+        assert len(s) == 2 or width <= ANY_SHAPE_ROW_WIDTH + 1e-12
+    fits = [s for s in scenes if 3 * s[0].size + 0.002 <= ANY_SHAPE_ROW_WIDTH]
+    threes = sum(len(s) == 3 for s in fits) / len(fits)
+    assert 0.4 <= threes <= 0.6, threes  # 0.5 +- about 4 sd of ~280 draws
+    for layout in ("block", "two_rows", "diced"):
+        assert sample_scene(layout, np.random.default_rng(9), "any_shape") == sample_scene(
+            layout, np.random.default_rng(9), "resolved")
 
 
 def test_resolved_two_row_plates_leave_out_the_unresolved_level_only() -> None:
