@@ -79,11 +79,13 @@ RESOLVED_TWO_ROWS_YOUNG: tuple[float, ...] = (200e6, 40e6, 5e6, 0.15e6, 0.06e6) 
 # of the food space's sizes that fit the blades.  Rows of 8-14 mm cubes (Row-v1) are all
 # held and spared by the lightest touch (0.03 rad), because the half-spoons' V holds a cube
 # pressed at its bottom edges; a round piece is touched only nearer its equator, so a large
-# sphere or ellipsoid needs a deeper angle (0.06-0.07 rad at 20 mm) that crushes a small
-# soft one (docs/agents.md, "How much choosing the angle is worth").  Three pieces are drawn
-# only where three fit ANY_SHAPE_ROW_WIDTH, inside the 48 mm blades.
+# sphere or ellipsoid needs a deeper angle (on the 40 tuning rows, 0.04 rad left five of
+# 16-21 mm on the plate) that crushes the smallest soft cubes (0.05 rad, two of 8.6-8.8 mm;
+# docs/agents.md, "How much choosing the angle is worth").  Three pieces are drawn only
+# where three fit ANY_SHAPE_ROW_WIDTH; two 22 mm pieces span at most 45 mm of the 48 mm
+# blades.
 ANY_SHAPE_ROW_SIZE_RANGE = (0.008, 0.022)  # [m]
-ANY_SHAPE_ROW_WIDTH = 0.044  # [m] widest row drawn: 2 mm of blade left each side
+ANY_SHAPE_ROW_WIDTH = 0.044  # [m] widest row of three: 2 mm of blade left each side
 
 WIDE_SAMPLING: dict[str, dict[str, Any]] = {
     "block": {"shape": SHAPES, "size_m": food_space.SIZE_RANGE,
