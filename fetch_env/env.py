@@ -343,12 +343,18 @@ def _obs_table() -> str:
         for i, n in enumerate(OBS_NAMES))
 
 
+def _id_defaults(version: str, overrides: dict[str, str]) -> dict[str, Any]:
+    """A registered id's defaults: its version's (``VERSION_DEFAULTS``), the "env" probes,
+    and the id's own ``overrides`` over both."""
+    return {**VERSION_DEFAULTS[version], "probes": "env", **overrides}
+
+
 def _docstring(title: str, description: str, layout: str, version: str = "v0",
                **overrides: str) -> str:
     """An id's docstring: its description and scene ranges, then the common reference with
     the version's defaults (``VERSION_DEFAULTS``, with the id's ``overrides``) and its
     version history."""
-    defaults = {**VERSION_DEFAULTS[version], "probes": "env", **overrides}
+    defaults = _id_defaults(version, overrides)
     sampling = _SPACE_SAMPLING[defaults["scenes"]]
     ranges = "\n".join(f"    - {k}: {v}" for k, v in sampling[layout].items())
     body = _COMMON_DOC.format(
@@ -802,7 +808,7 @@ def _with_defaults(default: str, version: str = "v0", **overrides: str) -> Calla
     defaulting to the id's scene family, the reward and scene arguments to its version's
     (``VERSION_DEFAULTS``) and ``probes`` to "env", each replaced by the id's ``overrides``
     (the same as given to :func:`_docstring`); every other argument passed through."""
-    d = {**VERSION_DEFAULTS[version], "probes": "env", **overrides}
+    d = _id_defaults(version, overrides)
 
     def __init__(self: FoodFetchEnv, layout: str = default,
                  time_weight: float = d["time_weight"], damage: str = d["damage"],

@@ -19,6 +19,10 @@ from fetch_env.env import FoodFetchEnv, _docstring, _with_defaults
 __all__ = ["FoodFetchRowV2Env", "FoodFetchTwoRowsV2Env"]
 
 
+# Row-v2's arguments that differ from the v2 defaults (its docstring and __init__ share them)
+_ROW_V2: dict[str, str] = {"scenes": "any_shape", "probes": "measure"}
+
+
 class FoodFetchRowV2Env(FoodFetchEnv):
     __doc__ = _docstring(
         "FoodFetch-Row-v2: fetch a row of pieces of any shape, size and food.",
@@ -30,9 +34,9 @@ class FoodFetchRowV2Env(FoodFetchEnv):
         "only nearer its equator, so a large sphere needs a deeper angle that crushes a small "
         "soft piece, and the angle must follow the row's shape and size.  The observations "
         "come from the ``measure`` probes (``probes=\"measure\"``).",
-        "row", "v2", scenes="any_shape", probes="measure")
+        "row", "v2", **_ROW_V2)
 
-    __init__ = _with_defaults("row", "v2", scenes="any_shape", probes="measure")
+    __init__ = _with_defaults("row", "v2", **_ROW_V2)
 
 
 class FoodFetchTwoRowsV2Env(FoodFetchEnv):
