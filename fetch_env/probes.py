@@ -159,6 +159,9 @@ SLIP_ENVELOPES: tuple[SlipEnvelope, ...] = ("sum", "per_blade")
 # 10 ms step, every step (100 Hz): 0.1 / 1.2 / 4.6 / 13 %.
 
 
+MAX_RELAXATION_REPEATS = 15
+
+
 @dataclass(frozen=True)
 class ProbeConfig:
     """Settings of the two reset probes (SI units).
@@ -194,6 +197,12 @@ class ProbeConfig:
             compliance grows with the step (a 10 mm, 3 MPa ellipsoid's blades sink 39 um at
             5 ms, 13 um at 2.5 ms, 4.6 um at 1 ms), and that compliance, in series with the
             food, lengthens the held moment's relaxation time by ``K2 / (K1 + k_c)``.
+        relaxation_repeats: how many relaxation clamps to run, each at its own squeeze
+            (:func:`repeat_strains`); the estimates are the medians over the clamps.  The
+            simulated clamp of a cube is chaotic in its squeeze: 1 % more strain moves one
+            food's tau_1 by up to 15 points (``docs/estimator_validation.md``), so a median
+            over nearby squeezes halves the tails at the cost of one probe per clamp.
+        repeat_strain_step: the relative strain step between the repeated clamps [-].
     """
 
     strain: float = 0.06
@@ -211,6 +220,8 @@ class ProbeConfig:
     slip_timestep: float = 0.01
     relaxation_timestep: float | None = None
     slip_envelope: SlipEnvelope = "sum"
+    relaxation_repeats: int = 1
+    repeat_strain_step: float = 0.02
 
     def __post_init__(self) -> None:
         for name, (lo, hi, lo_open) in _PROBE_LIMITS.items():
@@ -222,6 +233,16 @@ class ProbeConfig:
             require_finite("relaxation_timestep", self.relaxation_timestep)
             require(1e-4 <= self.relaxation_timestep <= 0.02, "relaxation_timestep",
                     self.relaxation_timestep, "in [1e-4, 0.02] s or None")
+        require(isinstance(self.relaxation_repeats, int | np.integer)
+                and not isinstance(self.relaxation_repeats, bool)
+                and 1 <= self.relaxation_repeats <= MAX_RELAXATION_REPEATS,
+                "relaxation_repeats", self.relaxation_repeats,
+                f"an integer in [1, {MAX_RELAXATION_REPEATS}]")
+        require_finite("repeat_strain_step", self.repeat_strain_step)
+        require(0.0 <= self.repeat_strain_step <= 0.2
+                and self.relaxation_repeats // 2 * self.repeat_strain_step < 1.0,
+                "repeat_strain_step", self.repeat_strain_step,
+                "in [0, 0.2], with every repeated clamp's strain above 0")
         require(isinstance(self.slip_envelope, str) and self.slip_envelope in SLIP_ENVELOPES,
                 "slip_envelope", self.slip_envelope, f"one of {SLIP_ENVELOPES}")
 
@@ -622,34 +643,99 @@ def _mu_sd_log(mu: float, est: Any, envelope: float) -> float:
     return float(np.sqrt(np.sum(np.square(_mu_log_parts(mu, est, envelope)))))
 
 
+def repeat_strains(config: ProbeConfig) -> list[float]:
+    """The squeezes of the relaxation clamps: ``strain`` first, then alternately below and
+    above it by ``repeat_strain_step`` of it, ``strain * (1, 1 - s, 1 + s, 1 - 2 s, ...)``."""
+    out = []
+    for j in range(config.relaxation_repeats):
+        k, sign = (j + 1) // 2, (-1.0 if j % 2 else 1.0)
+        out.append(config.strain * (1.0 + sign * k * config.repeat_strain_step))
+    return out
+
+
 def _relaxation_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | None,
                       noise: float, rng: np.random.Generator, out: ProbeOutcome,
                       keep_traces: bool, drift_diagnostics: bool = True) -> None:
-    """Run the relaxation probe on ``piece`` and put its estimates into ``out`` (with the
-    hold's drift diagnostics where ``drift_diagnostics``)."""
+    """Run the relaxation probe on ``piece`` (``config.relaxation_repeats`` clamps) and put
+    its estimates into ``out`` (with the hold's drift diagnostics where
+    ``drift_diagnostics``); the first clamp's action, geometry and traces are kept."""
     sim = FetchSimulator((piece,), geometry, impratio=config.relaxation_impratio,
                          timestep=config.relaxation_timestep)
-    theta_d = probe_angle(sim, config.strain, "relaxation")
-    action = FetchAction(theta_d=theta_d, omega=config.omega, hold=config.hold,
-                         settle=config.settle)
-    res = sim.run("relaxation", action,
-                  time_scale=TimeScale(config.hold_time_scale, realtime=HOLD_SETTLE,
-                                       growth=config.hold_time_growth))
-    out.details["relaxation_action"] = action.to_dict()
-    out.details["relaxation_geometry"] = res.geometry  # L and theta_0 for the SLS
-    out.details["relaxation_max_log_strain"] = float(res.traces["max_log_strain"].max())
+    runs = []
+    for strain in repeat_strains(config):
+        theta_d = probe_angle(sim, strain, "relaxation")
+        action = FetchAction(theta_d=theta_d, omega=config.omega, hold=config.hold,
+                             settle=config.settle)
+        runs.append(sim.run("relaxation", action,
+                            time_scale=TimeScale(config.hold_time_scale, realtime=HOLD_SETTLE,
+                                                 growth=config.hold_time_growth)))
+    out.details["relaxation_action"] = runs[0].action.to_dict()
+    out.details["relaxation_geometry"] = runs[0].geometry  # L and theta_0 for the SLS
+    out.details["relaxation_max_log_strain"] = max(
+        float(r.traces["max_log_strain"].max()) for r in runs)
     if keep_traces:
-        out.traces["relaxation"] = res.traces
+        out.traces["relaxation"] = runs[0].traces
     fit_start, cpu_start = time.perf_counter(), time.process_time()
-    vals, warns, intervals = estimate_viscoelastic(res, noise, rng,
-                                                   out.details.setdefault("diagnostics", {}),
-                                                   drift_diagnostics)
+    fits, failures = [], []
+    for res in runs:
+        diagnostics: dict[str, float] = {}
+        try:
+            vals, warns, intervals = estimate_viscoelastic(res, noise, rng, diagnostics,
+                                                           drift_diagnostics)
+        except EstimationError as exc:
+            failures.append(str(exc))
+            continue
+        fits.append(_ClampFit(vals, warns, intervals, diagnostics))
     out.details["wall_fits"] = out.details.get("wall_fits", 0.0) + time.perf_counter() - fit_start
     _add_cpu(out, "cpu_fits", cpu_start)
-    out.estimates.update(vals)
-    out.intervals.update(intervals)
-    out.warnings += warns
+    if not fits:
+        raise EstimationError(failures[0])
+    fit = _median_of_clamps(fits)
+    out.details.setdefault("diagnostics", {}).update(fit.diagnostics)
+    out.estimates.update(fit.values)
+    out.intervals.update(fit.intervals)
+    out.warnings += fit.warnings
+    if failures:
+        out.warnings.append(f"{len(failures)} of {len(runs)} relaxation clamps gave no "
+                            f"estimate: {failures[0]}")
     out.visco_valid = True
+
+
+@dataclass
+class _ClampFit:
+    """The estimates of one relaxation clamp (or the median of several)."""
+
+    values: dict[str, float]
+    warnings: list[str]
+    intervals: dict[str, tuple[float, float]]
+    diagnostics: dict[str, float]
+
+
+def _median_of_clamps(fits: list[_ClampFit]) -> _ClampFit:
+    """One estimate from several clamps' fits: the medians of g1, tau1 and K1 + K2 (on the
+    log scale), from which K1, K2 and B follow as one SLS; each interval is that of the clamp
+    nearest the median, moved with it; the diagnostics are the clamps' means, with the
+    clamps' spread of log g1 and log tau1 (``repeat_sd_log_g1``, ``repeat_sd_log_tau1``)."""
+    if len(fits) == 1:
+        return fits[0]
+    logs = {k: np.log([f.values[k] for f in fits]) for k in ("g1", "tau1")}
+    logs["K"] = np.log([f.values["K1"] + f.values["K2"] for f in fits])
+    med = {k: float(np.exp(np.median(v))) for k, v in logs.items()}
+    k2 = med["g1"] * med["K"]
+    values = {"K1": med["K"] - k2, "K2": k2, "B": med["tau1"] * k2, "g1": med["g1"],
+              "tau1": med["tau1"]}
+    intervals = {}
+    for name, v in values.items():
+        own = np.array([f.values[name] for f in fits])
+        j = int(np.argmin(np.abs(np.log(own) - math.log(v))))
+        lo, hi = fits[j].intervals.get(name, (math.nan, math.nan))
+        intervals[name] = (lo * v / own[j], hi * v / own[j])
+    keys = set.intersection(*(set(f.diagnostics) for f in fits))
+    diagnostics = {k: float(np.mean([f.diagnostics[k] for f in fits])) for k in sorted(keys)}
+    diagnostics.update(repeat_sd_log_g1=float(np.std(logs["g1"], ddof=1)),
+                       repeat_sd_log_tau1=float(np.std(logs["tau1"], ddof=1)))
+    warnings = list(dict.fromkeys(w for f in fits for w in f.warnings))
+    return _ClampFit(values, warnings, intervals, diagnostics)
 
 
 def slip_run(piece: Piece, config: ProbeConfig, geometry: Geometry | None = None) -> SimResult:
@@ -842,6 +928,10 @@ def load_calibrations(path: Path = CALIBRATION_FILE) -> dict[str, Calibration]:
 PROBE_PRESETS: dict[str, ProbeConfig] = {
     "env": ProbeConfig(),
     "measure": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade"),
+    # measure's probes with seven relaxation clamps at squeezes 0.0564-0.0636: the medians
+    # halve the tails of g1 and tau1 a single clamp leaves (ProbeConfig.relaxation_repeats)
+    "repeated": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade",
+                            relaxation_repeats=7),
 }
 
 # Calibrations of the presets' systematic errors, fitted on the validation harness's tuning

@@ -181,25 +181,29 @@ def probe_actions(args: argparse.Namespace, pieces: tuple[Any, ...]) -> dict[str
 
 
 STUDY_OPTIONS = ("--theta-d", "--omega", "--hold", "--clamp-weight", "--slide-time")
+# the presets of fetch_env.probes that --probes offers besides the study's fixed clamp
+ADAPTIVE_PROBES = ("measure", "repeated")
 
 
 def which_probes(args: argparse.Namespace) -> str:
     """``--probes``, or where it is omitted: "study" when a study-probe option is given
     (``STUDY_OPTIONS`` or ``--method three-step``), else "measure"."""
     given = [o for o in STUDY_OPTIONS if o in getattr(args, "simulation_options", ())]
-    if args.probes == "measure" and (given or args.method != "full"):
+    if args.probes in ADAPTIVE_PROBES and (given or args.method != "full"):
         what = ", ".join(given) or f"--method {args.method}"
         raise UsageError(f"food-fetch estimate: {what} sets the study's probes; it has no "
-                         "effect with --probes measure (give --probes study)")
+                         f"effect with --probes {args.probes} (give --probes study)")
     if args.probes is not None:
         return str(args.probes)
     return "study" if given or args.method != "full" else "measure"
 
 
-def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any
-                ) -> ProbeEstimate:
-    """The shared probes of ``fetch_env.probes`` (adaptive angles, 20 s time-scaled hold,
-    calibrated, intervals with model error), held to the elastic-twin truth."""
+
+def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any,
+                preset: str = "measure") -> ProbeEstimate:
+    """The shared probes of ``fetch_env.probes``, ``preset``'s settings (adaptive angles,
+    20 s time-scaled holds, calibrated, intervals with model error), held to the
+    elastic-twin truth."""
     from fetch_env.errors import SimulationDivergedError
     from fetch_env.probes import (
         PROBE_CALIBRATIONS,
@@ -208,9 +212,9 @@ def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any
         true_parameters_exact,
     )
 
-    config = PROBE_PRESETS["measure"]
+    config = PROBE_PRESETS[preset]
     res = run_probes(pieces, config, noise=args.noise, seed=args.seed,
-                     calibration=PROBE_CALIBRATIONS.get("measure"))
+                     calibration=PROBE_CALIBRATIONS.get(preset))
     keep = {"both": NAMES, "relaxation": NAMES[:5], "slip": ("mu",)}[args.probe]
     estimate = {k: res.estimates[k] if k in keep else math.nan for k in NAMES}
     interval = {k: res.intervals.get(k, (math.nan, math.nan)) for k in keep}
@@ -226,7 +230,7 @@ def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any
         out.warnings.append("true K1, K2, B not computed: the elastic twin gave no moment")
         truth.update(K1=math.nan, K2=math.nan, B=math.nan)
     out.true.update({k: truth[k] for k in keep})
-    out.details["settings"] = {"probes": "measure", "noise": args.noise, "seed": args.seed,
+    out.details["settings"] = {"probes": preset, "noise": args.noise, "seed": args.seed,
                                "probe": args.probe, "config": dataclasses.asdict(config)}
     out.details["probes"] = {k: v for k, v in res.details.items() if k != "uncalibrated"}
     out.details["uncalibrated"] = res.details.get("uncalibrated")
@@ -242,9 +246,9 @@ def probe_clips(args: argparse.Namespace, pieces: tuple[Any, ...], probes: str,
     from fetch_env.probes import PROBE_PRESETS
     from fetch_env.scene import BASE_TIMESTEP, young_caps
 
-    config = PROBE_PRESETS["measure"]
+    config = PROBE_PRESETS.get(probes, PROBE_PRESETS["measure"])
     steps = ({"relaxation": config.relaxation_timestep or BASE_TIMESTEP,
-              "slip": config.slip_timestep} if probes == "measure"
+              "slip": config.slip_timestep} if probes in ADAPTIVE_PROBES
              else {"relaxation": BASE_TIMESTEP, "slip": BASE_TIMESTEP})
     out: list[dict[str, Any]] = []
     for probe in ("relaxation", "slip"):
@@ -269,8 +273,8 @@ def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
     pieces = (Piece(args.shape, args.size, material),)
     probes = which_probes(args)
     with reported_elsewhere():  # in the text and the JSON's "clipped" instead
-        if probes == "measure":
-            out = run_measure(args, pieces, material)
+        if probes in ADAPTIVE_PROBES:
+            out = run_measure(args, pieces, material, probes)
             out.clipped = probe_clips(args, pieces, probes, {})
             return out
         out, actions = _run_study(args, pieces, material)
@@ -435,11 +439,13 @@ def add_options(p: argparse.ArgumentParser) -> None:
     help_caps(p)
     p.add_argument(
         "--probes",
-        choices=("measure", "study"),
+        choices=(*ADAPTIVE_PROBES, "study"),
         default=None,
-        help="measure: the environments' probes, made for any food (the clamp angle adapts "
-        "to the piece, a 20 s time-scaled hold, a calibration fitted on reference foods, 95 %% "
-        "intervals that include model error; docs/estimator_validation.md); study: the "
+        help="measure: probes made for any food (the clamp angle adapts to the piece, a 20 s "
+        "time-scaled hold, a calibration fitted on reference foods, 95 %% intervals that "
+        "include model error; docs/estimator_validation.md; the probes of FoodFetch-Row-v2); "
+        "repeated: the same with seven relaxation clamps at nearby squeezes and their "
+        "medians (about half the tails of g1 and tau1, 5x the probes' time); study: the "
         "study's fixed clamp (--theta-d, --omega, --hold, --method, --clamp-weight, "
         "--slide-time). Default: study where one of those is given, else measure",
     )
