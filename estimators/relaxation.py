@@ -380,7 +380,8 @@ def _trf(tol: float) -> dict[str, Any]:
             "max_nfev": 200}
 
 
-def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float, drift: bool = False) -> HoldFit:
+def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float, drift: bool = False,
+                        plain: HoldFit | None = None) -> HoldFit:
     """Fit eq. 6 to the hold samples ``t > t_d`` with ``scipy.optimize.curve_fit``.
 
     Start values come from the linear integral form ``M(t) - M(t_a) = -lam int M + lam M_inf (t -
@@ -397,6 +398,9 @@ def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float, drift: bool = Fa
     4.6 % but raised g1's from 2.3 to 3.7 %; the probes use the plain fit, and the two fits'
     disagreement as a calibration input, :func:`estimators.uncertainty.drift_diagnostics`.)
 
+    ``plain``: the plain fit already made on these samples (``drift`` False, converged), so
+    that with ``drift`` only the refit with the line runs; the result is the same.
+
     Raises:
         EstimationError: fewer than 10 hold samples, or a ``t_d`` that is not a real number.
     """
@@ -411,6 +415,9 @@ def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float, drift: bool = Fa
             f"{_MIN_HOLD_SAMPLES}"
         )
     duration = float(s[-1])
+    if drift and plain is not None and plain.drift == 0.0 and np.all(np.isfinite(plain.cov)):
+        popt, pcov = np.array([plain.M_inf, plain.A, plain.lam]), plain.cov
+        return _hold_fit(s, y, duration, *_add_drift(s, y, popt, pcov), converged=True)
     # Integral-form start values.
     cum = np.concatenate(([0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(s))))
     X = np.column_stack((-cum, s - s[0]))
@@ -439,6 +446,14 @@ def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float, drift: bool = Fa
     c = 0.0
     if drift and converged:
         popt, pcov, c = _add_drift(s, y, popt, pcov)
+    return _hold_fit(s, y, duration, popt, pcov, c, converged)
+
+
+def _hold_fit(s: NDArray[np.float64], y: NDArray[np.float64], duration: float,
+              popt: NDArray[np.float64], pcov: NDArray[np.float64], c: float,
+              converged: bool) -> HoldFit:
+    """The :class:`HoldFit` of fitted ``(M_inf, A, lam)``, their covariance and drift ``c``
+    on the hold samples ``(s, y)``: its R^2 and whether it resolves a relaxation."""
     m_inf, a, lam = (float(v) for v in popt)
     r2 = _r2(y, _exp_drift_model(s, m_inf, a, lam, c))
     se_a = float(np.sqrt(pcov[1, 1])) if np.isfinite(pcov[1, 1]) else np.inf
@@ -597,7 +612,8 @@ class HoldEstimate:
 
 def estimate_from_hold(t: ArrayLike, M: ArrayLike, geometry: ClampGeometry, theta_1: float,
                        theta_d: float, omega: float, t_d: float,
-                       settle: float = 0.0, drift: bool = False) -> HoldEstimate:
+                       settle: float = 0.0, drift: bool = False,
+                       plain: HoldFit | None = None) -> HoldEstimate:
     """``K1, K2, B`` (and ``g1, tau1``) from the hold alone, past a settling time.
 
     Eq. 6 is fitted to the samples after ``t_d + settle``: its rate is ``1 / tau1`` for any SLS
@@ -618,6 +634,8 @@ def estimate_from_hold(t: ArrayLike, M: ArrayLike, geometry: ClampGeometry, thet
         omega: clamping velocity, rad/s. t_d: time the clamp reaches ``theta_d``, s.
         settle: start of the hold left out, s (>= 0).
         drift: fit a linear drift with the exponential (:func:`fit_hold_relaxation`).
+        plain: with ``drift``, the plain hold fit already made on the same arguments (its
+            ``fit``), so that only the refit with the line runs.
 
     Raises:
         EstimationError: bad traces or settings, too short a hold, or a hold that does not
@@ -638,7 +656,7 @@ def estimate_from_hold(t: ArrayLike, M: ArrayLike, geometry: ClampGeometry, thet
         raise EstimationError(f"settle must be finite and >= 0 s, got {settle!r}")
     if not 0.0 <= theta_1 < theta_d:
         raise EstimationError(f"theta_1={theta_1!r} rad must be in [0, theta_d={theta_d!r})")
-    hf = fit_hold_relaxation(tt, m, t_d + settle, drift=drift)
+    hf = fit_hold_relaxation(tt, m, t_d + settle, drift=drift, plain=plain)
     if not hf.relaxes:
         raise EstimationError(
             "the hold does not relax above the noise: g1 and tau1 are not identified"

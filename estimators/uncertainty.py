@@ -243,7 +243,8 @@ def drift_diagnostics(t: np.ndarray, m: np.ndarray, geometry: ClampGeometry, the
     try:
         if plain is None:
             plain = estimate_from_hold(t, m, *args, settle=settle)
-        with_drift = estimate_from_hold(t, m, *args, settle=settle, drift=True)
+        with_drift = estimate_from_hold(t, m, *args, settle=settle, drift=True,
+                                        plain=plain.fit)
     except (EstimationError, ArithmeticError):
         return dict.fromkeys(DRIFT_DIAGNOSTICS, 0.0)
     out = {}

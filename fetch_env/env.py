@@ -171,13 +171,14 @@ _COMMON_DOC = """
     records; ``fetch_env.controller.TimeScale``): 6 s of relaxation in ~60 steps.  With the
     probes' other settings (``fetch_env.probes.ProbeConfig``) it costs about a third of a
     Block episode; the accuracy on held-back scenes is in the README and
-    ``docs/validation/probes.md``.  ``probes="measure"`` runs the probes of ``food-fetch
-    estimate`` instead (a 20 s hold, a 0.3 s slide; ``fetch_env.probes.PROBE_PRESETS``), with
-    their own calibration: on the 64 held-back Block scenes tau1's 95th percentile error
-    falls from 16 % to 8 % and g1's from 7 % to 4 %, for 1.3x the probes' CPU time
-    (``docs/estimator_validation.md``).  ``probe_time_scale=1, probe_time_growth=0`` simulates
-    the hold in real time (the unscaled reference); ``probe_hold=0.3`` still gives mu but g1
-    and tau1 only coarsely or not at all.
+    ``docs/validation/probes.md``.  ``probes="measure"`` runs the one-clamp probes of
+    ``food-fetch estimate --probes measure`` instead (a 20 s hold, a 0.3 s slide;
+    ``fetch_env.probes.PROBE_PRESETS``), with their own calibration: on the 64 held-back
+    Block scenes tau1's 95th percentile error falls from 16 % to 8 % and g1's from 7 % to
+    4 %, for 1.3x the probes' CPU time (``docs/estimator_validation.md``).
+    ``probe_time_scale=1, probe_time_growth=0`` simulates the hold in real time (the unscaled
+    reference); ``probe_hold=0.3`` still gives mu but g1 and tau1 only coarsely or not at
+    all.
 
     ## Rewards
     ``reward = reward_fetch + reward_deformation + reward_time`` (each in ``info``):

@@ -76,11 +76,13 @@ from estimators import (
     HoldEstimate,
     ViscoelasticEstimate,
     estimate_friction,
+    estimate_from_hold,
     estimate_full_fit,
     estimate_three_step,
 )
 from estimators.calibration import ERROR_INPUTS, Calibration
 from estimators.uncertainty import DRIFT_DIAGNOSTICS, hold_with_intervals, log_interval
+from estimators.uncertainty import drift_diagnostics as uncertainty_drift
 from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator, SimResult, TimeScale
 from fetch_env.errors import (
     SimulationDivergedError,
@@ -441,6 +443,15 @@ def estimate_viscoelastic(result: SimResult, noise: float = 0.0,
     Raises :class:`EstimationError` when neither method can use the trace.
     """
     _check_run_args(result, "relaxation", noise, rng)
+    vals, warns, intervals, _ = _estimate_clamp(result, noise, rng, diagnostics,
+                                                drift_diagnostics)
+    return vals, warns, intervals
+
+
+def _clamp_samples(result: SimResult, noise: float, rng: np.random.Generator | None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, ClampGeometry, float]:
+    """The clamp and hold samples a relaxation run's fit reads: (t from the clamp start,
+    the commanded angle, the moment with ``noise``, the clamp geometry, theta_d)."""
     tr = result.traces
     t0 = float(result.extra.get("t_clamp_start", 0.0))
     # The hold angle the motor was told (the run ends in the hold): theta_d, or where a stiff
@@ -457,7 +468,17 @@ def estimate_viscoelastic(result: SimResult, noise: float = 0.0,
     # than the estimators' plateau tolerance (the hold is then not found on spheres), and a
     # position-controlled motor knows its command.
     t, moment = tr["t"][sel] - t0, _noisy(_mean_moment(tr)[sel], noise, rng)
-    args = (t, tr["theta_cmd"][sel], moment, geom)
+    return t, tr["theta_cmd"][sel], moment, geom, theta_d
+
+
+def _estimate_clamp(result: SimResult, noise: float, rng: np.random.Generator | None,
+                    diagnostics: dict[str, float] | None, drift_diagnostics: bool
+                    ) -> tuple[dict[str, float], list[str], dict[str, tuple[float, float]],
+                               ViscoelasticEstimate]:
+    """:func:`estimate_viscoelastic`, with the full (or three-step) fit whose contact angle
+    and clamp timing the hold fit used."""
+    t, theta_cmd, moment, geom, theta_d = _clamp_samples(result, noise, rng)
+    args = (t, theta_cmd, moment, geom)
     kw = {"omega": result.action.omega, "theta_d": theta_d}
     errors: list[str] = []
     for method, extra in ((estimate_full_fit, {"clamp_weight": CLAMP_WEIGHT}),
@@ -471,7 +492,7 @@ def estimate_viscoelastic(result: SimResult, noise: float = 0.0,
         if all(np.isfinite(v) and v > 0 for v in _visco_values(est).values()):
             vals, warns, intervals = _from_the_hold(est, t, moment, geom, diagnostics,
                                                     drift_diagnostics)
-            return vals, [*errors, *warns], intervals
+            return vals, [*errors, *warns], intervals, est
         errors.append(f"{method.__name__}: not identified ({'; '.join(est.warnings)})")
     raise EstimationError("; ".join(errors))
 
@@ -676,16 +697,7 @@ def _relaxation_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | No
     if keep_traces:
         out.traces["relaxation"] = runs[0].traces
     fit_start, cpu_start = time.perf_counter(), time.process_time()
-    fits, failures = [], []
-    for res in runs:
-        diagnostics: dict[str, float] = {}
-        try:
-            vals, warns, intervals = estimate_viscoelastic(res, noise, rng, diagnostics,
-                                                           drift_diagnostics)
-        except EstimationError as exc:
-            failures.append(str(exc))
-            continue
-        fits.append(_ClampFit(vals, warns, intervals, diagnostics))
+    fits, failures = _fit_clamps(runs, noise, rng, drift_diagnostics)
     out.details["wall_fits"] = out.details.get("wall_fits", 0.0) + time.perf_counter() - fit_start
     _add_cpu(out, "cpu_fits", cpu_start)
     if not fits:
@@ -701,6 +713,50 @@ def _relaxation_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | No
     out.visco_valid = True
 
 
+def _fit_clamps(runs: list[SimResult], noise: float, rng: np.random.Generator,
+                drift_diagnostics: bool) -> tuple[list[_ClampFit], list[str]]:
+    """Each clamp's estimates, and why the others gave none.  The first clamp that can be
+    fitted gets the full fit, intervals and diagnostics (:func:`estimate_viscoelastic`);
+    the others only the hold fit, with its contact angle and clamp start (the piece and
+    the blades' start are the same; the hold fit is a fifth of the full fit's time)."""
+    fits: list[_ClampFit] = []
+    failures: list[str] = []
+    first: ViscoelasticEstimate | None = None
+    for res in runs:
+        try:
+            if first is None:
+                diagnostics: dict[str, float] = {}
+                vals, warns, intervals, first = _estimate_clamp(res, noise, rng, diagnostics,
+                                                                drift_diagnostics)
+                fits.append(_ClampFit(vals, warns, intervals, diagnostics))
+            else:
+                vals, drift = _hold_values(res, first, noise, rng, drift_diagnostics)
+                fits.append(_ClampFit(vals, [], {}, drift))
+        except (EstimationError, ArithmeticError) as exc:
+            failures.append(str(exc))
+    return fits, failures
+
+
+def _hold_values(result: SimResult, first: ViscoelasticEstimate, noise: float,
+                 rng: np.random.Generator, drift_diagnostics: bool
+                 ) -> tuple[dict[str, float], dict[str, float]]:
+    """K1, K2, B, g1, tau1 of a repeated clamp from its hold alone
+    (:func:`estimators.estimate_from_hold` past ``HOLD_SETTLE``), with the contact angle and
+    clamp start of the first clamp's fit ``first``; and, where ``drift_diagnostics``, its
+    hold's :func:`estimators.uncertainty.drift_diagnostics` (else an empty dict)."""
+    t, _, moment, geom, theta_d = _clamp_samples(result, noise, rng)
+    omega = result.action.omega
+    t_d = first.t_d - first.theta_d / first.omega + theta_d / omega
+    args = (t, moment, geom, first.theta_1, theta_d, omega, t_d)
+    hold = estimate_from_hold(*args, settle=HOLD_SETTLE)
+    vals = _visco_values(hold)
+    if not (0.0 < vals["g1"] < 1.0 and 0.0 < vals["tau1"] < math.inf):
+        raise EstimationError(f"the hold gives g1={vals['g1']!r}, tau1={vals['tau1']!r}")
+    drift = (uncertainty_drift(*args, settle=HOLD_SETTLE, plain=hold) if drift_diagnostics
+             else {})
+    return vals, drift
+
+
 @dataclass
 class _ClampFit:
     """The estimates of one relaxation clamp (or the median of several)."""
@@ -712,30 +768,32 @@ class _ClampFit:
 
 
 def _median_of_clamps(fits: list[_ClampFit]) -> _ClampFit:
-    """One estimate from several clamps' fits: the medians of g1, tau1 and K1 + K2 (on the
-    log scale), from which K1, K2 and B follow as one SLS; each interval is that of the clamp
-    nearest the median, moved with it; the diagnostics are the clamps' means, with the
-    clamps' spread of log g1 and log tau1 (``repeat_sd_log_g1``, ``repeat_sd_log_tau1``)."""
+    """One estimate from several clamps' fits, the first a full one at the set squeeze: the
+    medians of g1 and tau1 (on the log scale) and the first clamp's K1 + K2 (a piece's
+    stiffness moves with the squeeze, and the truth is the set squeeze's), from which K1, K2
+    and B follow as one SLS; the first fit's intervals, moved with the values, and its
+    diagnostics, but the drift pair (``DRIFT_DIAGNOSTICS``) the clamps' mean where every
+    clamp has it, with the clamps' spread of log g1 and log tau1 (``repeat_sd_log_g1``,
+    ``repeat_sd_log_tau1``)."""
     if len(fits) == 1:
         return fits[0]
+    first = fits[0]
     logs = {k: np.log([f.values[k] for f in fits]) for k in ("g1", "tau1")}
-    logs["K"] = np.log([f.values["K1"] + f.values["K2"] for f in fits])
-    med = {k: float(np.exp(np.median(v))) for k, v in logs.items()}
-    k2 = med["g1"] * med["K"]
-    values = {"K1": med["K"] - k2, "K2": k2, "B": med["tau1"] * k2, "g1": med["g1"],
-              "tau1": med["tau1"]}
+    g1, tau1 = (float(np.exp(np.median(logs[k]))) for k in ("g1", "tau1"))
+    k_el = first.values["K1"] + first.values["K2"]
+    values = {"K1": (1.0 - g1) * k_el, "K2": g1 * k_el, "B": tau1 * g1 * k_el, "g1": g1,
+              "tau1": tau1}
     intervals = {}
     for name, v in values.items():
-        own = np.array([f.values[name] for f in fits])
-        j = int(np.argmin(np.abs(np.log(own) - math.log(v))))
-        lo, hi = fits[j].intervals.get(name, (math.nan, math.nan))
-        intervals[name] = (lo * v / own[j], hi * v / own[j])
-    keys = set.intersection(*(set(f.diagnostics) for f in fits))
-    diagnostics = {k: float(np.mean([f.diagnostics[k] for f in fits])) for k in sorted(keys)}
-    diagnostics.update(repeat_sd_log_g1=float(np.std(logs["g1"], ddof=1)),
+        lo, hi = first.intervals.get(name, (math.nan, math.nan))
+        intervals[name] = (lo * v / first.values[name], hi * v / first.values[name])
+    diagnostics = dict(first.diagnostics, repeat_sd_log_g1=float(np.std(logs["g1"], ddof=1)),
                        repeat_sd_log_tau1=float(np.std(logs["tau1"], ddof=1)))
-    warnings = list(dict.fromkeys(w for f in fits for w in f.warnings))
-    return _ClampFit(values, warnings, intervals, diagnostics)
+    # the contact's creep, which the tau1 calibration reads, seen by every clamp
+    for key in DRIFT_DIAGNOSTICS:
+        if all(key in f.diagnostics for f in fits):
+            diagnostics[key] = float(np.mean([f.diagnostics[key] for f in fits]))
+    return _ClampFit(values, list(first.warnings), intervals, diagnostics)
 
 
 def slip_run(piece: Piece, config: ProbeConfig, geometry: Geometry | None = None) -> SimResult:

@@ -41,7 +41,7 @@ def _check(f: Food, capsys: pytest.CaptureFixture[str], probes: str) -> None:
             assert math.isfinite(float(value)) and float(value) > 0
 
 
-@pytest.mark.parametrize("probes", ["measure", "study"])
+@pytest.mark.parametrize("probes", ["repeated", "study"])
 @pytest.mark.parametrize("food", QUICK, ids=lambda f: f"{f.shape}-{f.size}-{f.young:g}")
 def test_estimate_answers_at_hard_corners(food: Food, probes: str,
                                           capsys: pytest.CaptureFixture[str]) -> None:
@@ -50,7 +50,7 @@ def test_estimate_answers_at_hard_corners(food: Food, probes: str,
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("probes", ["measure", "study"])
+@pytest.mark.parametrize("probes", ["repeated", "study"])
 @pytest.mark.parametrize("food", CORNERS, ids=lambda f: f"{f.shape}-{f.size}-{f.young:g}-{f.g1}")
 def test_estimate_answers_at_every_corner(food: Food, probes: str,
                                           capsys: pytest.CaptureFixture[str]) -> None:

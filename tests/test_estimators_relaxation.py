@@ -329,3 +329,19 @@ def test_hold_fit_with_drift_recovers_an_exponential_plus_a_line() -> None:
     pure = fit_hold_relaxation(t, m_inf + a * np.exp(-lam * s), t_d - 1e-9, drift=True)
     assert abs(pure.drift) < 1e-9 and pure.lam == pytest.approx(lam, rel=1e-8)
     assert_allclose(pure.cov.shape, (3, 3))
+
+
+def test_drift_fit_from_a_given_plain_fit_is_the_same_fit() -> None:
+    """``plain=`` skips the plain fit the drift refit starts from: on a noisy creeping hold
+    the result is the one fitted from scratch, to the last bit."""
+    rng = np.random.default_rng(3)
+    s = np.linspace(0.0, 20.0, 400)
+    t_d = 2.0
+    m = 0.05 + 0.03 * np.exp(-s / 1.5) - 4e-4 * s + 2e-4 * rng.standard_normal(s.size)
+    plain = fit_hold_relaxation(t_d + s, m, t_d - 1e-9)
+    scratch = fit_hold_relaxation(t_d + s, m, t_d - 1e-9, drift=True)
+    given = fit_hold_relaxation(t_d + s, m, t_d - 1e-9, drift=True, plain=plain)
+    for name in ("M_inf", "A", "lam", "r2", "duration", "relaxes", "drift"):
+        assert getattr(given, name) == getattr(scratch, name), name
+    np.testing.assert_array_equal(given.cov, scratch.cov)
+    assert given.drift < 0.0

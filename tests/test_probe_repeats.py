@@ -44,29 +44,33 @@ def test_bad_repeat_settings_name_the_value(kwargs: dict[str, object], name: str
         ProbeConfig(**kwargs)  # type: ignore[arg-type]
 
 
-def _fit(k: float, g1: float, tau1: float, drift: float) -> _ClampFit:
+def _fit(k: float, g1: float, tau1: float, full: bool, drift: float = 0.1) -> _ClampFit:
     k2 = g1 * k
     values = {"K1": k - k2, "K2": k2, "B": tau1 * k2, "g1": g1, "tau1": tau1}
-    return _ClampFit(values, [f"w{drift}"], {n: (0.9 * v, 1.1 * v) for n, v in values.items()},
-                     {"drift_log_tau1": drift, "only_here": 1.0} if drift else
-                     {"drift_log_tau1": drift})
+    if not full:  # a repeated clamp's: values and its hold's drift pair only
+        return _ClampFit(values, [], {}, {"drift_log_g1": drift, "drift_log_tau1": drift})
+    return _ClampFit(values, ["w"], {n: (0.9 * v, 1.1 * v) for n, v in values.items()},
+                     {"drift_log_g1": drift, "drift_log_tau1": drift, "end_drift": 0.5})
 
 
 def test_median_of_clamps_is_one_consistent_sls() -> None:
-    fits = [_fit(1000.0, 0.30, 2.0, 0.0), _fit(1100.0, 0.40, 2.6, 0.1),
-            _fit(900.0, 0.35, 1.8, 0.2)]
+    fits = [_fit(1100.0, 0.40, 2.6, True, 0.1), _fit(1000.0, 0.30, 2.0, False, 0.2),
+            _fit(900.0, 0.35, 1.8, False, 0.6)]
     out = _median_of_clamps(fits)
     v = out.values
-    assert_allclose([v["K1"] + v["K2"], v["g1"], v["tau1"]], [1000.0, 0.35, 2.0], rtol=1e-12)
+    # g1 and tau1 the clamps' medians, K1 + K2 the first (set-squeeze) clamp's
+    assert_allclose([v["K1"] + v["K2"], v["g1"], v["tau1"]], [1100.0, 0.35, 2.0], rtol=1e-12)
     assert_allclose([v["K2"] / (v["K1"] + v["K2"]), v["B"] / v["K2"]], [0.35, 2.0], rtol=1e-12)
-    # each interval is its nearest clamp's, moved with the median: +-10 % here
+    # the first (full) clamp's intervals, moved with the median: +-10 % here
     for name, (lo, hi) in out.intervals.items():
         assert_allclose([lo / v[name], hi / v[name]], [0.9, 1.1], rtol=1e-9, err_msg=name)
-    assert out.diagnostics["drift_log_tau1"] == pytest.approx(0.1)
-    assert "only_here" not in out.diagnostics  # not every clamp has it
+    # the drift pair is every clamp's mean, the rest the first clamp's
+    assert out.diagnostics["drift_log_tau1"] == pytest.approx(0.3)
+    assert out.diagnostics["drift_log_g1"] == pytest.approx(0.3)
+    assert out.diagnostics["end_drift"] == 0.5
     assert out.diagnostics["repeat_sd_log_tau1"] == pytest.approx(
-        float(np.std(np.log([2.0, 2.6, 1.8]), ddof=1)), rel=1e-12)
-    assert out.warnings == ["w0.0", "w0.1", "w0.2"]
+        float(np.std(np.log([2.6, 2.0, 1.8]), ddof=1)), rel=1e-12)
+    assert out.warnings == ["w"]
     assert _median_of_clamps(fits[:1]) is fits[0]
 
 

@@ -19,17 +19,20 @@ from benchmarks.validate_estimators import calibrate, foods_of, measure, summari
 from fetch_env.probes import PARAM_NAMES
 
 DATA = Path(__file__).resolve().parents[1] / "docs" / "data" / "validation"
-REPORT = json.loads((DATA / "reporting_measure_noise0.json").read_text())
+REPORTS = {preset: json.loads((DATA / f"reporting_{preset}_noise0.json").read_text())
+           for preset in ("repeated", "measure")}
 
 
-@pytest.mark.parametrize("index", [0, 1, 2, 3])
-def test_reporting_foods_measure_as_committed(index: int) -> None:
+@pytest.mark.parametrize(("preset", "index"), [("repeated", 0), ("repeated", 1),
+                                               ("measure", 0), ("measure", 1), ("measure", 2),
+                                               ("measure", 3)])
+def test_reporting_foods_measure_as_committed(preset: str, index: int) -> None:
     """Same food, same probes: the same estimates and intervals as the committed run (the
     harness is deterministic), every estimate found, and the truth inside the g1 and mu
     intervals wherever the committed run had it there."""
     food = foods_of("reporting", 64)[index]
-    rec = measure(food, "measure", 0.0, 7919 * index + 1)
-    old = next(r for r in REPORT["records"] if r["food"]["index"] == index)
+    rec = measure(food, preset, 0.0, 7919 * index + 1)
+    old = next(r for r in REPORTS[preset]["records"] if r["food"]["index"] == index)
     for k in PARAM_NAMES:
         assert_allclose(rec["estimate"][k], old["estimate"][k], rtol=1e-6, err_msg=k)
         assert_allclose(rec["interval"][k], old["interval"][k], rtol=1e-6, err_msg=k)
@@ -38,15 +41,17 @@ def test_reporting_foods_measure_as_committed(index: int) -> None:
     assert abs(rec["error"]["g1"]) < 0.17 and abs(rec["error"]["mu"]) < 0.12
 
 
-def test_committed_summary_holds_what_the_docs_say() -> None:
+@pytest.mark.parametrize("preset", ["repeated", "measure"])
+def test_committed_summary_holds_what_the_docs_say(preset: str) -> None:
     """Recomputed from the records: the 95 % intervals of g1, tau1 and mu cover the truth on
     at least 90 % of the 64 reporting foods, and no food with a g1, tau1 or mu error over 5 %
     is flagged reliable."""
-    s = summarize(REPORT["records"])
+    report = REPORTS[preset]
+    s = summarize(report["records"])
     for k in PARAM_NAMES:
         for field in ("median", "p95", "max", "coverage"):
-            assert_allclose(s[k][field], REPORT["summary"][k][field], rtol=1e-12)
-    assert s["reliability"] == REPORT["summary"]["reliability"]
+            assert_allclose(s[k][field], report["summary"][k][field], rtol=1e-12)
+    assert s["reliability"] == report["summary"]["reliability"]
     assert s["n_foods"] == 64 and s["n_crashed"] == 0
     for k in ("g1", "tau1", "mu"):
         assert 0.90 <= s[k]["coverage"] <= 1.0, (k, s[k]["coverage"])

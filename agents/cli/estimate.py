@@ -182,12 +182,12 @@ def probe_actions(args: argparse.Namespace, pieces: tuple[Any, ...]) -> dict[str
 
 STUDY_OPTIONS = ("--theta-d", "--omega", "--hold", "--clamp-weight", "--slide-time")
 # the presets of fetch_env.probes that --probes offers besides the study's fixed clamp
-ADAPTIVE_PROBES = ("measure", "repeated")
+ADAPTIVE_PROBES = ("repeated", "measure")
 
 
 def which_probes(args: argparse.Namespace) -> str:
     """``--probes``, or where it is omitted: "study" when a study-probe option is given
-    (``STUDY_OPTIONS`` or ``--method three-step``), else "measure"."""
+    (``STUDY_OPTIONS`` or ``--method three-step``), else "repeated"."""
     given = [o for o in STUDY_OPTIONS if o in getattr(args, "simulation_options", ())]
     if args.probes in ADAPTIVE_PROBES and (given or args.method != "full"):
         what = ", ".join(given) or f"--method {args.method}"
@@ -195,12 +195,12 @@ def which_probes(args: argparse.Namespace) -> str:
                          f"effect with --probes {args.probes} (give --probes study)")
     if args.probes is not None:
         return str(args.probes)
-    return "study" if given or args.method != "full" else "measure"
+    return "study" if given or args.method != "full" else "repeated"
 
 
 
 def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any,
-                preset: str = "measure") -> ProbeEstimate:
+                preset: str = "repeated") -> ProbeEstimate:
     """The shared probes of ``fetch_env.probes``, ``preset``'s settings (adaptive angles,
     20 s time-scaled holds, calibrated, intervals with model error), held to the
     elastic-twin truth."""
@@ -441,13 +441,14 @@ def add_options(p: argparse.ArgumentParser) -> None:
         "--probes",
         choices=(*ADAPTIVE_PROBES, "study"),
         default=None,
-        help="measure: probes made for any food (the clamp angle adapts to the piece, a 20 s "
-        "time-scaled hold, a calibration fitted on reference foods, 95 %% intervals that "
-        "include model error; docs/estimator_validation.md; the probes of FoodFetch-Row-v2); "
-        "repeated: the same with seven relaxation clamps at nearby squeezes and their "
-        "medians (about half the tails of g1 and tau1, 5x the probes' time); study: the "
-        "study's fixed clamp (--theta-d, --omega, --hold, --method, --clamp-weight, "
-        "--slide-time). Default: study where one of those is given, else measure",
+        help="repeated: probes made for any food (the clamp angle adapts to the piece, seven "
+        "20 s time-scaled relaxation clamps at nearby squeezes and the medians of g1 and "
+        "tau1, a calibration fitted on reference foods, 95 %% intervals that include model "
+        "error; docs/estimator_validation.md); measure: the same with one clamp (the "
+        "probes of FoodFetch-Row-v2), a fifth of the time, twice the tails of g1 and tau1; "
+        "study: the study's fixed clamp (--theta-d, --omega, --hold, --method, "
+        "--clamp-weight, --slide-time). Default: study where one of those is given, else "
+        "repeated",
     )
     p.add_argument(
         "--method",
