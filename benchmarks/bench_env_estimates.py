@@ -2,14 +2,14 @@
 
 For each layout, resets the env on held-back seeds (Block: ``tests/test_env_slow.HELD_BACK``,
 90000-90063; the other layouts: 90000-90031) with the default ``env`` probes calibrated and
-uncalibrated (``probe_calibrated``) and with the ``measure`` probes calibrated
-(``probes="measure"``), and reports, per parameter, the median, 95th percentile and max of
-|model / oracle - 1| (g1, tau1 and mu: the material's, exact; K1, K2, B: the oracle's
-nominal ``2 E A / l``, so only their scatter means much), the probes' median wall time per
-reset and the reset's median CPU time (this process's, so the machine's load does not
-enter).  Writes JSON and a markdown table.  The scenes are the "study" space's (the -v0
-ids'); ``--scenes`` draws another space's (``fetch_env.env_scenes.SCENE_SPACES``) and
-names the files after it.
+uncalibrated (``probe_calibrated``) and with the ``measure`` and ``repeated`` probes
+calibrated (``probes="measure"``, ``probes="repeated"``), and reports, per parameter, the
+median, 95th percentile and max of |model / oracle - 1| (g1, tau1 and mu: the material's,
+exact; K1, K2, B: the oracle's nominal ``2 E A / l``, so only their scatter means much), the
+probes' median wall time per reset and the reset's median CPU time (this process's, so the
+machine's load does not enter).  Writes JSON and a markdown table.  The scenes are the
+"study" space's (the -v0 ids'); ``--scenes`` draws another space's
+(``fetch_env.env_scenes.SCENE_SPACES``) and names the files after it.
 
     python benchmarks/bench_env_estimates.py --workers 2 --out docs/data/validation
     python benchmarks/bench_env_estimates.py --layouts row --scenes any_shape --workers 2
@@ -41,7 +41,8 @@ FIRST_SEED = 90_000
 
 
 # (probes preset, calibrated) per layout
-VARIANTS: tuple[tuple[str, bool], ...] = (("env", True), ("env", False), ("measure", True))
+VARIANTS: tuple[tuple[str, bool], ...] = (("env", True), ("env", False), ("measure", True),
+                                          ("repeated", True))
 
 
 def run(layout: str, probes: str, calibrated: bool, seeds: list[int],

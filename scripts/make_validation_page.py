@@ -386,12 +386,13 @@ def main() -> int:
                      "Model estimates against the oracle at reset, on held-back seeds from "
                      "90000: the default `env` probes (a 6 s hold) with the calibration "
                      "fitted for them on the tuning foods (`--preset env`) and without it, "
-                     "and the `measure` probes (one 20 s clamp, a 0.3 s slide; "
-                     "`probes=\"measure\"`) with theirs.  The probed piece of a "
-                     "multi-piece scene is simulated alone, so its errors are the food's, and "
-                     "the layouts differ in the foods they draw.  Reset CPU: the median CPU "
-                     "time of a reset (scene, probes, fits), and its ratio to the calibrated "
-                     "`env` probes' on the same layout. "
+                     "the `measure` probes (one 20 s clamp, a 0.3 s slide; "
+                     "`probes=\"measure\"`) and the `repeated` probes of `food-fetch "
+                     "estimate` (seven clamps; `probes=\"repeated\"`) with theirs.  The "
+                     "probed piece of a multi-piece scene is simulated alone, so its errors "
+                     "are the food's, and the layouts differ in the foods they draw.  Reset "
+                     "CPU: the median CPU time of a reset (scene, probes, fits), and its "
+                     "ratio to the calibrated `env` probes' on the same layout. "
                      f"Command: `{data['meta']['command'].strip()}`.\n\n")
         parts.append(env_table(data["results"]) + "\n")
     parts.append(any_shape_rows_section())
