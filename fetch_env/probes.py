@@ -200,10 +200,11 @@ class ProbeConfig:
             5 ms, 13 um at 2.5 ms, 4.6 um at 1 ms), and that compliance, in series with the
             food, lengthens the held moment's relaxation time by ``K2 / (K1 + k_c)``.
         relaxation_repeats: how many relaxation clamps to run, each at its own squeeze
-            (:func:`repeat_strains`); the estimates are the medians over the clamps.  The
-            simulated clamp of a cube is chaotic in its squeeze: 1 % more strain moves one
-            food's tau_1 by up to 15 points (``docs/estimator_validation.md``), so a median
-            over nearby squeezes halves the tails at the cost of one probe per clamp.
+            (:func:`repeat_strains`); g_1 and tau_1 are the medians over the clamps.  The
+            simulated clamp is chaotic in its squeeze (some foods clamped a few per cent
+            deeper read another tau_1; ``docs/estimator_validation.md``, "Seven clamps at
+            nearby squeezes"), so a median over nearby squeezes shrinks the tails, at the
+            cost of one probe per clamp.
         repeat_strain_step: the relative strain step between the repeated clamps [-].
     """
 
@@ -986,8 +987,9 @@ def load_calibrations(path: Path = CALIBRATION_FILE) -> dict[str, Calibration]:
 PROBE_PRESETS: dict[str, ProbeConfig] = {
     "env": ProbeConfig(),
     "measure": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade"),
-    # measure's probes with seven relaxation clamps at squeezes 0.0564-0.0636: the medians
-    # halve the tails of g1 and tau1 a single clamp leaves (ProbeConfig.relaxation_repeats)
+    # measure's probes with seven relaxation clamps at squeezes 0.0564-0.0636, whose medians
+    # shrink the tails of g1 and tau1 a single clamp leaves (tau1's 95th percentile 17 -> 10 %
+    # on the tuning foods, cross-validated; ProbeConfig.relaxation_repeats)
     "repeated": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade",
                             relaxation_repeats=7),
 }
