@@ -89,3 +89,19 @@ def test_readme_estimator_table_is_the_committed_json() -> None:
     block = readme[readme.index(page.MARK_BEGIN) + len(page.MARK_BEGIN):
                    readme.index(page.MARK_END)]
     assert block.strip() == page.readme_table().strip()
+
+
+def test_default_probes_meet_the_reporting_sets_figures_on_its_first_foods() -> None:
+    """A reduced accuracy check over the food space in the default run: ``food-fetch
+    estimate``'s probes (``repeated``) on the first 8 reporting foods (3 cubes, 3 spheres,
+    2 ellipsoids, 0.02-4.8 MPa), recomputed: each g1 and tau1 within the reporting set's 95th
+    percentiles (6.66 and 11.32 %), their medians within 2 and 3 %, mu's median within 1 %,
+    and the g1 and tau1 intervals covering the truth on at least 7 of the 8."""
+    recs = [measure(food, "repeated", 0.0, 7919 * food.index + 1)
+            for food in foods_of("reporting", 64)[:8]]
+    err = {k: np.array([abs(r["error"][k]) for r in recs]) for k in ("g1", "tau1", "mu")}
+    assert err["g1"].max() <= 0.0666 and err["tau1"].max() <= 0.1132, err
+    assert np.median(err["g1"]) <= 0.02 and np.median(err["tau1"]) <= 0.03, err
+    assert np.median(err["mu"]) <= 0.01, err["mu"]
+    for k in ("g1", "tau1"):
+        assert sum(bool(r["covered"][k]) for r in recs) >= 7, k
