@@ -74,6 +74,7 @@ from estimators import (
     ClampGeometry,
     EstimationError,
     HoldEstimate,
+    SLSParams,
     ViscoelasticEstimate,
     estimate_friction,
     estimate_from_hold,
@@ -781,9 +782,8 @@ def _median_of_clamps(fits: list[_ClampFit]) -> _ClampFit:
     first = fits[0]
     logs = {k: np.log([f.values[k] for f in fits]) for k in ("g1", "tau1")}
     g1, tau1 = (float(np.exp(np.median(logs[k]))) for k in ("g1", "tau1"))
-    k_el = first.values["K1"] + first.values["K2"]
-    values = {"K1": (1.0 - g1) * k_el, "K2": g1 * k_el, "B": tau1 * g1 * k_el, "g1": g1,
-              "tau1": tau1}
+    sls = SLSParams.from_prony(first.values["K1"] + first.values["K2"], g1, tau1)
+    values = {"K1": sls.K1, "K2": sls.K2, "B": sls.B, "g1": g1, "tau1": tau1}
     intervals = {}
     for name, v in values.items():
         lo, hi = first.intervals.get(name, (math.nan, math.nan))

@@ -76,14 +76,11 @@ def test_median_of_clamps_is_one_consistent_sls() -> None:
 
 def test_three_clamps_on_the_study_cube_recover_its_relaxation() -> None:
     """The study's 15 mm, 0.2 MPa cube: three clamps, the preset's calibration, g1 and tau1
-    within 5 % of the material's; one clamp's estimate is the same as before repeats."""
+    within 5 % of the material's.  (One clamp reproduces the committed `measure` runs:
+    tests/test_validation_harness.py.)"""
     food = Food(index=0, shape="cube", size=0.015, young=0.2e6, g1=0.425, tau1=3.667, mu=0.3,
                 poisson=0.3, density=1000.0)
     pieces = (food.piece(),)
-    one = run_probes(pieces, PROBE_PRESETS["measure"])
-    also_one = run_probes(pieces, dataclasses.replace(PROBE_PRESETS["measure"],
-                                                      relaxation_repeats=1))
-    assert one.estimates == also_one.estimates
     three = run_probes(pieces, dataclasses.replace(PROBE_PRESETS["repeated"],
                                                    relaxation_repeats=3),
                        calibration=PROBE_CALIBRATIONS["repeated"])
