@@ -22,8 +22,9 @@ spacing that resolves the 2 x 2 plate of check 1 makes the id's very soft plates
 angle rather than a lottery.
 
 With ``--levels ID``, a fourth check alone: 4. every plate of the id's softest level among
-the tuning seeds 100-139 (FoodFetch-TwoRows-v1: 0.0123 MPa; -v2: 0.06 MPa) fetched at three
-clamp angles under the three settings of check 2: how often the settings disagree on the
+the tuning seeds 100-139 (FoodFetch-TwoRows-v1: 0.0123 MPa; -v2 and -v3: 0.06 MPa) fetched at
+three clamp angles (-v3: deeper, where its round pieces are held) under the three settings of
+check 2: how often the settings disagree on the
 outcome (rewards more than 0.5 apart), i.e. how often the plate's outcome is the numerics'
 rather than the action's.  This is how the -v2 id's softest level was checked.
 
@@ -134,7 +135,10 @@ def spaced_tuning_plates(seeds: range = range(100, 140), across: float = 1e-3
 
 
 LEVEL_THETAS = (0.04, 0.05, 0.07)  # [rad] a light touch, the best constant, a deep squeeze
-SOFTEST_LEVEL = {"FoodFetch-TwoRows-v1": SOFT.young, "FoodFetch-TwoRows-v2": 0.06e6}  # [Pa]
+# TwoRows-v3's round pieces are first held at 0.06-0.07 rad and its best constant is 0.07 rad
+ID_LEVEL_THETAS = {"FoodFetch-TwoRows-v3": (0.05, 0.07, 0.09)}  # [rad]
+SOFTEST_LEVEL = {"FoodFetch-TwoRows-v1": SOFT.young, "FoodFetch-TwoRows-v2": 0.06e6,
+                 "FoodFetch-TwoRows-v3": 0.06e6}  # [Pa]
 DISAGREE = 0.5  # rewards further apart than this across settings: the numerics decide
 
 
@@ -148,7 +152,7 @@ def soft_levels(env_id: str, seeds: range = range(100, 140)) -> list[dict[str, A
         young = envs["default"].unwrapped.pieces[0].material.young
         if young > SOFTEST_LEVEL[env_id]:
             continue
-        for theta in LEVEL_THETAS:
+        for theta in ID_LEVEL_THETAS.get(env_id, LEVEL_THETAS):
             by_setting = {name: fetch(env, theta, seed=seed) for name, env in envs.items()}
             rewards = [f["reward"] for f in by_setting.values()]
             out.append({"seed": seed, "young_mpa": young / 1e6, "theta": theta,
@@ -174,7 +178,8 @@ def summarize_levels(rows: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
 
 
 def main_levels(env_id: str, out: Path) -> int:
-    data: dict[str, Any] = {"env_id": env_id, "thetas": list(LEVEL_THETAS),
+    data: dict[str, Any] = {"env_id": env_id,
+                            "thetas": list(ID_LEVEL_THETAS.get(env_id, LEVEL_THETAS)),
                             "settings": SETTINGS, "disagree_above": DISAGREE, "meta": meta()}
     data["fetches"] = soft_levels(env_id)
     data["summary"] = summarize_levels(data["fetches"])

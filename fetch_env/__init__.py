@@ -51,6 +51,7 @@ ENV_IDS: dict[str, str] = {
     "FoodFetch-Diced-v1": "fetch_env.env_v1:FoodFetchDicedV1Env",
     "FoodFetch-Row-v2": "fetch_env.env_v2:FoodFetchRowV2Env",
     "FoodFetch-TwoRows-v2": "fetch_env.env_v2:FoodFetchTwoRowsV2Env",
+    "FoodFetch-TwoRows-v3": "fetch_env.env_v3:FoodFetchTwoRowsV3Env",
 }
 
 for _id, _entry in ENV_IDS.items():

@@ -61,7 +61,8 @@ SAMPLING: dict[str, dict[str, Any]] = {
 # (fetch_env.food_space: 8-25 mm, 0.0123-5 MPa, g1 0.1-0.8, tau1 0.5-10 s, mu 0.1-0.8), so
 # that slippery, very soft, stiff, small and large pieces all occur and no single fixed
 # action is near the best on every scene (the study's scenes vary only the layout).
-SCENE_SPACES: tuple[str, ...] = ("study", "wide", "resolved", "any_shape")
+SCENE_SPACES: tuple[str, ...] = ("study", "wide", "resolved", "any_shape",
+                                 "any_shape_two_rows")
 WIDE_ROW_SIZE_RANGE = (0.008, 0.014)  # [m] three 14 mm cubes still fit the 48 mm blades
 WIDE_TWO_ROWS_SIZE_RANGE = (0.008, 0.012)  # [m]
 WIDE_DICED_SIZE_RANGE = (0.007, 0.012)  # [m]
@@ -112,6 +113,20 @@ ANY_SHAPE_SAMPLING: dict[str, dict[str, Any]] = {
             "n": f"2 or 3, 3 only where the row fits {ANY_SHAPE_ROW_WIDTH * 1000:g} mm",
             "material": "as block"},
 }
+# The "any_shape_two_rows" scene space (FoodFetch-TwoRows-v3): the any_shape space with
+# two-row plates of any shape.  Two rows of 8-12 mm cubes (TwoRows-v2) are all held by a
+# light touch at the cubes' bottom edges, one constant action; two rows of round pieces are
+# touched nearer their equators, through two pieces in series, so the angle must follow the
+# plate's shape and size.  The stiffness levels stay the resolved space's.
+ANY_SHAPE_TWO_ROWS_SIZE_RANGE = (0.008, 0.016)  # [m] two 16 mm rows span 33 mm along the clamp
+ANY_SHAPE_TWO_ROWS_SAMPLING: dict[str, dict[str, Any]] = {
+    **ANY_SHAPE_SAMPLING,
+    "two_rows": {"shape": SHAPES, "size_m": ANY_SHAPE_TWO_ROWS_SIZE_RANGE,
+                 "n_per_row": f"2 or 3, 3 only where a row fits {ANY_SHAPE_ROW_WIDTH * 1000:g} mm",
+                 "spacing_along_m": TWO_ROWS_SPACING_ALONG,
+                 "spacing_across_m": TWO_ROWS_SPACING_ACROSS,
+                 "young_pa": RESOLVED_TWO_ROWS_YOUNG, "g1, tau1_s, mu": "as block"},
+}
 
 
 def _log_uniform(rng: np.random.Generator, lo: float, hi: float) -> float:
@@ -148,6 +163,18 @@ def sample_any_shape_row(rng: np.random.Generator) -> tuple[Piece, ...]:
     n = int(rng.integers(2, n_max + 1))
     return grid(1, n, size, 0.001, spacing, sample_wide_material(rng),
                 shape=shape)  # type: ignore[arg-type]
+
+
+def sample_any_shape_two_rows(rng: np.random.Generator) -> tuple[Piece, ...]:
+    """A plate of the "any_shape_two_rows" space (:data:`ANY_SHAPE_TWO_ROWS_SAMPLING`): two
+    rows along the clamp of two or three equal pieces of one shape and material each."""
+    shape = str(rng.choice(SHAPES))
+    size = float(rng.uniform(*ANY_SHAPE_TWO_ROWS_SIZE_RANGE))
+    fits = 3 * size + 2 * TWO_ROWS_SPACING_ACROSS <= ANY_SHAPE_ROW_WIDTH
+    n = int(rng.integers(2, (3 if fits else 2) + 1))
+    young = float(rng.choice(RESOLVED_TWO_ROWS_YOUNG))
+    return grid(2, n, size, TWO_ROWS_SPACING_ALONG, TWO_ROWS_SPACING_ACROSS,
+                sample_wide_material(rng, young), shape=shape)  # type: ignore[arg-type]
 
 
 def sample_wide_scene(layout: str, rng: np.random.Generator,
@@ -191,17 +218,19 @@ def sample_wide_scene(layout: str, rng: np.random.Generator,
 def sample_scene(layout: str, rng: np.random.Generator,
                  scenes: str = "study") -> tuple[Piece, ...]:
     """Draw a scene of ``layout`` from the documented ranges of ``scenes`` (the -v0 ids'
-    "study" space, the -v1 ids' "wide" one, TwoRows-v2's "resolved" one or Row-v2's
-    "any_shape" one), using only ``rng``."""
+    "study" space, the -v1 ids' "wide" one, TwoRows-v2's "resolved" one, Row-v2's
+    "any_shape" one or TwoRows-v3's "any_shape_two_rows" one), using only ``rng``."""
     require(isinstance(layout, str) and layout in LAYOUTS, "layout", layout, f"one of {LAYOUTS}")
     require_type("rng", rng, np.random.Generator, "a numpy.random.Generator")
     require(isinstance(scenes, str) and scenes in SCENE_SPACES, "scenes", scenes,
             f"one of {SCENE_SPACES}")
     if scenes == "wide":
         return sample_wide_scene(layout, rng)
-    if scenes in ("resolved", "any_shape"):
+    if scenes == "any_shape_two_rows" and layout == "two_rows":
+        return sample_any_shape_two_rows(rng)
+    if scenes in ("resolved", "any_shape", "any_shape_two_rows"):
         return sample_wide_scene(layout, rng, RESOLVED_TWO_ROWS_YOUNG,
-                                 any_shape_rows=scenes == "any_shape")
+                                 any_shape_rows=scenes != "resolved")
     if scenes != "study":
         raise InvalidParameterError(f"scenes must be one of {SCENE_SPACES}, got {scenes!r}")
     if layout == "block":

@@ -119,12 +119,14 @@ def index_page(classes: dict[str, type]) -> str:
             "**Which version.** The -v1 ids are the benchmark: foods from the whole food space "
             "(8-25 mm, very soft to firm, slippery to grippy), damage charged piece by piece, "
             "and a cost per second of the fetch, so that no fixed action is near the best on "
-            "every scene. Where a -v2 id exists it replaces its -v1 id: TwoRows-v2 leaves "
-            "out a stiffness level the simulator does not resolve, and Row-v2 draws rows of "
+            "every scene. A newer version of an id replaces the older: TwoRows-v2 leaves "
+            "out a stiffness level the simulator does not resolve, Row-v2 draws rows of "
             "any shape and size, whose best angle follows the row (every Row-v1 row is held "
-            "by the lightest touch). The -v0 ids are the study's scenes with the study's "
-            "reward (the study's fixed action is near the best there); they stay available "
-            "unchanged, so results published on them can be reproduced.",
+            "by the lightest touch), and TwoRows-v3 does the same for two-row plates (every "
+            "TwoRows-v2 plate of cubes is held by a light touch). The -v0 ids are the "
+            "study's scenes with the study's reward (the study's fixed action is near the "
+            "best there); they stay available unchanged, so results published on them can "
+            "be reproduced.",
             "",
             "| id | scene |",
             "|---|---|",

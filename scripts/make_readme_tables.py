@@ -81,8 +81,22 @@ def _mean_ci(mean: float, ci: list[float] | None, digits: int = 3) -> str:
     return f"{mean:.{digits}f} [{ci[0]:.{digits}f}, {ci[1]:.{digits}f}]"
 
 
+def latest_ids(ids: list[str]) -> list[str]:
+    """Of ``ids``, those that are the newest registered version of their scene family past
+    the study's -v0 (the ids a newcomer should use; the others are on docs/agents.md), in
+    the order given."""
+    import fetch_env
+
+    newest: dict[str, int] = {}
+    for env_id in fetch_env.ENV_IDS:
+        family, _, version = env_id.rpartition("-v")
+        if int(version) > 0:
+            newest[family] = max(newest.get(family, 0), int(version))
+    return [i for i in ids if newest.get(i.rpartition("-v")[0]) == int(i.rpartition("-v")[2])]
+
+
 def headroom_table(data: dict[str, Any]) -> str:
-    results = data["results"]
+    results = {k: data["results"][k] for k in latest_ids(list(data["results"]))}
     shown = [a for a in HEADROOM_AGENTS if any(a in r["agents"] for r in results.values())]
     rows = ["| env id | " + " | ".join(a.upper() if a in TRAINED else a for a in shown)
             + " | regret of model-based | orderings |",
@@ -111,7 +125,7 @@ def headroom_table(data: dict[str, Any]) -> str:
             f"model-based, paired; orderings: search beats study by >= {data['margin']:g}, "
             "model-based beats random and study, intervals apart" + _shortfalls(results)
             + f". {cores}; {runs}: `python benchmarks/headroom.py --ids ID "
-            "--episodes 200 --seed 80000 --workers 2`. Run times, budgets: "
+            "--episodes 200 --seed 80000 --workers 2`. Older ids, run times, budgets: "
             "[docs/agents.md](docs/agents.md#headroom-on-the-benchmark-ids).")
 
 

@@ -1,5 +1,5 @@
-"""The versions: -v0 unchanged, -v1's reward terms and scene space, the -v2 ids' scene spaces,
-as documented.
+"""The versions: -v0 unchanged, -v1's reward terms and scene space, the -v2 and -v3 ids'
+scene spaces, as documented.
 
 ``tests/data/v0_reference.json`` holds what every -v0 id gave on fixed seeds (default
 kwargs, the model estimator, one seeded random action) before the -v1 ids existed; the
@@ -22,7 +22,10 @@ from fetch_env.env import VERSION_DEFAULTS, physical_to_action
 from fetch_env.env_scenes import (
     ANY_SHAPE_ROW_SIZE_RANGE,
     ANY_SHAPE_ROW_WIDTH,
+    ANY_SHAPE_TWO_ROWS_SIZE_RANGE,
     RESOLVED_TWO_ROWS_YOUNG,
+    TWO_ROWS_SPACING_ACROSS,
+    TWO_ROWS_SPACING_ALONG,
     WIDE_DICED_SIZE_RANGE,
     WIDE_ROW_SIZE_RANGE,
     WIDE_TWO_ROWS_SIZE_RANGE,
@@ -214,6 +217,46 @@ def test_any_shape_rows_span_shapes_and_sizes_and_fit_the_blades() -> None:
     for layout in ("block", "two_rows", "diced"):
         assert sample_scene(layout, np.random.default_rng(9), "any_shape") == sample_scene(
             layout, np.random.default_rng(9), "resolved")
+
+
+def test_two_rows_v3_is_two_rows_v2_with_plates_of_any_shape_and_the_measure_probes() -> None:
+    assert [i for i in fetch_env.ENV_IDS if i.endswith("-v3")] == ["FoodFetch-TwoRows-v3"]
+    u = gym.make("FoodFetch-TwoRows-v3", estimator="none").unwrapped
+    v2 = gym.make("FoodFetch-TwoRows-v2", estimator="none").unwrapped
+    assert (u.time_weight, u.damage, u.layout) == (v2.time_weight, v2.damage, v2.layout)
+    assert (u.scenes, u.probes) == ("any_shape_two_rows", "measure")
+    doc = type(u).__doc__
+    assert doc.startswith("FoodFetch-TwoRows-v3")
+    assert '| scenes | "any_shape_two_rows" |' in doc and '| probes | "measure" |' in doc
+
+
+def test_any_shape_two_row_plates_span_shapes_and_sizes_and_fit_the_blades() -> None:
+    """TwoRows-v3's plates: every shape, sizes over 8-16 mm, two rows along the clamp 1 mm
+    apart of two or three pieces (three only where a row fits 44 mm, then as often as two),
+    one shape, size and material per plate at the resolved levels; every other layout as
+    the any_shape space draws it."""
+    rng = np.random.default_rng(12)
+    scenes = [sample_scene("two_rows", rng, "any_shape_two_rows") for _ in range(600)]
+    assert {s[0].shape for s in scenes} == {"cube", "ellipsoid", "sphere"}
+    _covers([s[0].size for s in scenes], *ANY_SHAPE_TWO_ROWS_SIZE_RANGE)
+    _covers([s[0].material.mu for s in scenes], *food_space.MU_RANGE)
+    assert {s[0].material.young for s in scenes} == set(RESOLVED_TWO_ROWS_YOUNG)
+    for s in scenes:
+        assert len({(p.shape, p.size, p.material) for p in s}) == 1
+        ys = sorted({p.y for p in s})
+        assert len(ys) == 2
+        assert math.isclose(ys[1] - ys[0], s[0].extents[1] + TWO_ROWS_SPACING_ALONG)
+        per_row = len(s) // 2
+        assert len(s) == 2 * per_row and per_row in (2, 3)
+        width = per_row * s[0].size + (per_row - 1) * TWO_ROWS_SPACING_ACROSS
+        assert per_row == 2 or width <= ANY_SHAPE_ROW_WIDTH + 1e-12
+    fits = [s for s in scenes if 3 * s[0].size + 2 * TWO_ROWS_SPACING_ACROSS
+            <= ANY_SHAPE_ROW_WIDTH]
+    threes = sum(len(s) == 6 for s in fits) / len(fits)
+    assert 0.4 <= threes <= 0.6, threes  # 0.5 +- about 4 sd of the ~600 draws that fit
+    for layout in ("block", "row", "diced"):
+        assert sample_scene(layout, np.random.default_rng(9), "any_shape_two_rows") == (
+            sample_scene(layout, np.random.default_rng(9), "any_shape"))
 
 
 def test_resolved_two_row_plates_leave_out_the_unresolved_level_only() -> None:

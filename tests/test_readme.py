@@ -64,6 +64,15 @@ def test_readme_results_table_is_the_committed_json(name: str) -> None:
     assert tables.block(README.read_text(), name) == tables.render(name).strip()
 
 
+def test_the_readme_headroom_table_shows_the_newest_id_of_each_family() -> None:
+    tables = _tables_script()
+    ids = ["FoodFetch-Block-v0", "FoodFetch-Block-v1", "FoodFetch-Row-v1", "FoodFetch-Row-v2",
+           "FoodFetch-TwoRows-v2", "FoodFetch-TwoRows-v3", "FoodFetch-Diced-v1"]
+    assert tables.latest_ids(ids) == ["FoodFetch-Block-v1", "FoodFetch-Row-v2",
+                                      "FoodFetch-TwoRows-v3", "FoodFetch-Diced-v1"]
+    assert tables.latest_ids(["FoodFetch-TwoRows-v2"]) == []  # replaced by a registered -v3
+
+
 def _relative_links(text: str) -> list[str]:
     targets = re.findall(r"\]\(([^)\s]+)\)", text)
     targets += re.findall(r"^\[[^\]]+\]:\s*(\S+)", text, re.MULTILINE)

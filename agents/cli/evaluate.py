@@ -548,7 +548,7 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    "study, model-based)")
     p.add_argument("--env", default=DEFAULT_ENV, metavar="ID",
                    help="environment id: FoodFetch-{Block,Row,TwoRows,Diced}-v0 or -v1, "
-                   "FoodFetch-{Row,TwoRows}-v2 "
+                   "FoodFetch-{Row,TwoRows}-v2, FoodFetch-TwoRows-v3 "
                    f"(default: {DEFAULT_ENV}, the benchmark id)")
     p.add_argument("--env-kwargs", type=_env_kwarg, nargs="+", default=[], metavar="KEY=VALUE",
                    help="keyword arguments of the environment, values read as JSON where "

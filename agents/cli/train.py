@@ -27,7 +27,8 @@ DESCRIPTION = ("Train PPO or SAC with the hyperparameters shipped for the enviro
                "command that continues it; the exit code is 128 + the signal's number. Needs "
                "the train extra (stable-baselines3, torch). --backend rllib trains with RLlib "
                "instead, over Ray env runners (the rllib extra).")
-ENV_HELP = "FoodFetch-{Block,Row,TwoRows,Diced}-v0 or -v1, FoodFetch-{Row,TwoRows}-v2"
+ENV_HELP = ("FoodFetch-{Block,Row,TwoRows,Diced}-v0 or -v1, FoodFetch-{Row,TwoRows}-v2, "
+            "FoodFetch-TwoRows-v3")
 
 
 def _log_dir(text: str) -> Path:
