@@ -304,7 +304,7 @@ _COMMON_DOC = """
 
     ## Version history
     - v3 (0.2.0, TwoRows): two-row plates of any shape (cube, ellipsoid, sphere) and of
-      8-16 mm (``scenes="any_shape_two_rows"``), so that the clamp angle must follow the
+      8-20 mm (``scenes="any_shape_two_rows"``), so that the clamp angle must follow the
       plate: every TwoRows-v2 plate of 8-12 mm cubes was held by a light touch, and 0.05 rad
       was within 0.05 of the best angle on all 40 tuning plates; on v3's 40 tuning plates
       the best constant angle (0.07 rad) is within 0.05 of the best on 37 and scores 0.899

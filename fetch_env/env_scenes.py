@@ -118,7 +118,7 @@ ANY_SHAPE_SAMPLING: dict[str, dict[str, Any]] = {
 # light touch at the cubes' bottom edges, one constant action; two rows of round pieces are
 # touched nearer their equators, through two pieces in series, so the angle must follow the
 # plate's shape and size.  The stiffness levels stay the resolved space's.
-ANY_SHAPE_TWO_ROWS_SIZE_RANGE = (0.008, 0.016)  # [m] two 16 mm rows span 33 mm along the clamp
+ANY_SHAPE_TWO_ROWS_SIZE_RANGE = (0.008, 0.020)  # [m] two 20 mm rows span 41 mm along the clamp
 ANY_SHAPE_TWO_ROWS_SAMPLING: dict[str, dict[str, Any]] = {
     **ANY_SHAPE_SAMPLING,
     "two_rows": {"shape": SHAPES, "size_m": ANY_SHAPE_TWO_ROWS_SIZE_RANGE,

@@ -3,7 +3,7 @@
 FoodFetch-TwoRows-v2 is solved by one constant action: its plates of 8-12 mm cubes are all
 held by a light touch at the cubes' bottom edges, and 0.05 rad at the fastest clamp and lift
 is within 0.05 of the best angle on every tuning plate.  FoodFetch-TwoRows-v3 draws two-row
-plates of any shape and of 8-16 mm (the "any_shape_two_rows" scene space,
+plates of any shape and of 8-20 mm (the "any_shape_two_rows" scene space,
 ``fetch_env.env_scenes.sample_any_shape_two_rows``) and observes them with the ``measure``
 probes, as FoodFetch-Row-v2 does for one row.
 """
@@ -23,7 +23,7 @@ class FoodFetchTwoRowsV3Env(FoodFetchEnv):
     __doc__ = _docstring(
         "FoodFetch-TwoRows-v3: fetch two rows of pieces of any shape and size.",
         "Two rows along the clamp, 1 mm apart, of two or three equal pieces each (cube, "
-        "ellipsoid or sphere; 8 to 16 mm, three to a row only where they fit 44 mm; 0.01 mm "
+        "ellipsoid or sphere; 8 to 20 mm, three to a row only where they fit 44 mm; 0.01 mm "
         "apart across), of one of the resolved space's five stiffness levels (0.06, 0.15, 5, "
         "40 and 200 MPa) with viscoelasticity and friction from the food space.  The "
         "half-spoons squeeze the two rows in series: cubes are held at their bottom edges by "

@@ -231,7 +231,7 @@ def test_two_rows_v3_is_two_rows_v2_with_plates_of_any_shape_and_the_measure_pro
 
 
 def test_any_shape_two_row_plates_span_shapes_and_sizes_and_fit_the_blades() -> None:
-    """TwoRows-v3's plates: every shape, sizes over 8-16 mm, two rows along the clamp 1 mm
+    """TwoRows-v3's plates: every shape, sizes over 8-20 mm, two rows along the clamp 1 mm
     apart of two or three pieces (three only where a row fits 44 mm, then as often as two),
     one shape, size and material per plate at the resolved levels; every other layout as
     the any_shape space draws it."""
