@@ -53,6 +53,19 @@ The model (SI units throughout; numbers in :class:`ModelBasedConfig`):
   For the same reason the clamp on a diced plate (``MIXED_LAYOUTS``) is not slowed for the
   probed piece's predicted moment: on those tuning scenes the slowed clamp scored lower on
   every one of the 18 plates where it applied.
+  A two-row plate of any shape (FoodFetch-TwoRows-v3, ``scenes="any_shape_two_rows"``,
+  ``FIXED_DEPTH_SCENES``) is squeezed a fixed depth per face whatever its span: a round
+  piece is held only once the faces reach nearer its equator, 2.5 mm
+  (``dx_any_shape_two_rows``), and cubes, held at their bottom edges, 1.2 mm
+  (``dx_any_shape_two_rows_cubes``); the pieces are cubes when the plate's mass is at least
+  ``cube_fill`` of ``n size^3`` at 1050 kg/m^3 (cubes fill 0.91-1.09 of it on the tuning
+  plates, spheres and ellipsoids at most 0.56).  On the 40 tuning plates (seeds 100-139,
+  ``benchmarks/theta_sweep.py``; each depth's angle read off the sweep's grid) the depths
+  within 0.05 of each plate's best are 1.5-2.7 mm or wider for the round plates and
+  0.9-2.3 mm or wider for the cubes, so the rule is near the best on all 40 (0.894 against
+  the per-scene best's 0.898), where no share of the span is (0.20 of it misses one plate).
+  One depth for both, 2.5 mm, was as good on the grid but pressed a plate of 20 mm,
+  0.15 MPa cubes to 0.097 rad, between two grid angles, where the simulation flung it apart.
 
 Fallbacks: when the viscoelastic estimate is invalid (flag 0) K1, K2, B come from a cautious
 prior (the softest food-like modulus, 0.05 MPa, and the largest g1); an invalid mu is taken
@@ -100,7 +113,11 @@ class ModelBasedConfig:
     lift_speed_fast: float = 0.04  # [m/s] lift speed when time costs (the action's fastest)
     eps_min_two_rows: float = 0.07  # nominal squeeze of a two-row plate's span
     eps_diced: float = 0.10  # nominal squeeze of a diced plate's span
+    dx_any_shape_two_rows: float = 0.0025  # [m] squeeze per face of a round two-row plate
+    dx_any_shape_two_rows_cubes: float = 0.0012  # [m] the same for a plate of cubes
+    cube_fill: float = 0.75  # mass over (n size^3 x 1050 kg/m^3) from which pieces are cubes
     layout: str | None = None  # the scene family; None: the env's, read at begin_episode
+    scenes: str | None = None  # the scene space; None: the env's, read at begin_episode
 
 
 # Layouts whose squeeze is a fixed share of the span instead of the grip rule's (see the
@@ -109,6 +126,12 @@ FIXED_SQUEEZE_LAYOUTS: dict[str, str] = {"two_rows": "eps_min_two_rows", "diced"
 # Layouts whose probed piece does not stand for the pieces the blades close on: the clamp is
 # not slowed for the probed piece's predicted moment.
 MIXED_LAYOUTS: frozenset[str] = frozenset({"diced"})
+# (layout, scene space) pairs whose squeeze is a fixed depth per face, with the config fields
+# that hold it for round pieces and for cubes (see the module docstring)
+FIXED_DEPTH_SCENES: dict[tuple[str, str], tuple[str, str]] = {
+    ("two_rows", "any_shape_two_rows"): ("dx_any_shape_two_rows",
+                                         "dx_any_shape_two_rows_cubes")}
+FOOD_DENSITY = 1050.0  # [kg/m^3] the middle of the scenes' densities, for the cube test
 
 
 class ModelBasedAgent(Agent):
@@ -124,15 +147,19 @@ class ModelBasedAgent(Agent):
         self.last_plan: dict[str, Any] = {}
         self.time_weight = self.config.time_weight or 0.0
         self.layout = self.config.layout
+        self.scenes = self.config.scenes
 
     def begin_episode(self, env: Any) -> None:
-        """Read the reward's time cost and the layout from the env unless the config fixes
-        them."""
+        """Read the reward's time cost, the layout and the scene space from the env unless
+        the config fixes them."""
         if self.config.time_weight is None:
             self.time_weight = float(getattr(env.unwrapped, "time_weight", 0.0))
         if self.config.layout is None:
             layout = getattr(env.unwrapped, "layout", None)
             self.layout = layout if isinstance(layout, str) else None
+        if self.config.scenes is None:
+            scenes = getattr(env.unwrapped, "scenes", None)
+            self.scenes = scenes if isinstance(scenes, str) else None
 
     # ----------------------------------------------------------------- the model
     def plan(self, obs: np.ndarray) -> dict[str, Any]:
@@ -173,8 +200,14 @@ class ModelBasedAgent(Agent):
         eps_safe = 1.0 - math.exp(-c.strain_margin * c.safe_log_strain)
         eps_cap = 1.0 - math.exp(-(c.safe_log_strain + c.overshoot))
         fixed_field = FIXED_SQUEEZE_LAYOUTS.get(self.layout or "")
+        depth_fields = FIXED_DEPTH_SCENES.get((self.layout or "", self.scenes or ""))
         limited = ""
-        if fixed_field is not None:
+        if depth_fields is not None:
+            # a cube fills its size cubed; a sphere about half of it, an ellipsoid less
+            fill = mass / max(float(d["n_pieces"]) * float(d["mean_size"]) ** 3 * FOOD_DENSITY,
+                              1e-12)
+            eps = 2.0 * float(getattr(c, depth_fields[fill >= c.cube_fill])) / w
+        elif fixed_field is not None:
             eps = min(float(getattr(c, fixed_field)), eps_safe)
         else:
             eps = max(eps_grip, c.eps_min)

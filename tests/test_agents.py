@@ -151,6 +151,30 @@ def test_model_based_two_rows_squeeze_is_the_layout_setting() -> None:
     assert fixed.layout == "block"
 
 
+def test_model_based_any_shape_two_rows_squeeze_is_a_fixed_depth_per_face() -> None:
+    """On TwoRows-v3's plates each face presses a fixed depth into the plate whatever its
+    span, 2.5 mm for round pieces and 1.2 mm for cubes (told apart by the plate's mass
+    against n size^3); TwoRows-v2's plates keep the span's share (the scene space comes from the env
+    at begin_episode unless the config fixes it)."""
+    for span, fill, depth in ((0.017, 0.5, 0.0025), (0.035, 0.5, 0.0025),
+                              (0.017, 1.0, 0.0012), (0.035, 0.9, 0.0012)):
+        size = span / 2 - 0.0005
+        plate = _obs(n_pieces=4.0, span_along=span, mean_size=size, max_height=0.012,
+                     total_mass=4 * fill * 1050.0 * size**3)
+        agent = ModelBasedAgent()
+        agent.begin_episode(gym.make("FoodFetch-TwoRows-v3", estimator="none"))
+        assert (agent.layout, agent.scenes) == ("two_rows", "any_shape_two_rows")
+        p = agent.plan(plate)
+        assert p["dx"] == pytest.approx(depth) and p["eps"] == pytest.approx(2 * depth / span)
+        assert p["theta_d"] == pytest.approx((agent.geometry.gap + depth) / p["L"])
+        v2 = ModelBasedAgent()
+        v2.begin_episode(gym.make("FoodFetch-TwoRows-v2", estimator="none"))
+        assert v2.plan(plate)["eps"] == pytest.approx(v2.config.eps_min_two_rows)
+        fixed = ModelBasedAgent(ModelBasedConfig(scenes="resolved"))
+        fixed.begin_episode(gym.make("FoodFetch-TwoRows-v3", estimator="none"))
+        assert fixed.plan(plate)["eps"] == pytest.approx(fixed.config.eps_min_two_rows)
+
+
 def test_size_only_squeezes_a_share_of_the_width_at_the_fastest_speeds() -> None:
     agent = SizeOnlyAgent()
     geo = agent.geometry
