@@ -82,13 +82,11 @@ def _mean_ci(mean: float, ci: list[float] | None, digits: int = 3) -> str:
 
 
 def latest_ids(ids: list[str]) -> list[str]:
-    """Of ``ids``, those that are the newest registered version of their scene family past
-    the study's -v0 (the ids a newcomer should use; the others are on docs/agents.md), in
-    the order given."""
-    import fetch_env
-
+    """Of ``ids`` (the ids a run measured), the newest version of each scene family past the
+    study's -v0 (the ids a newcomer should use; the others are on docs/agents.md), in the
+    order given."""
     newest: dict[str, int] = {}
-    for env_id in fetch_env.ENV_IDS:
+    for env_id in ids:
         family, _, version = env_id.rpartition("-v")
         if int(version) > 0:
             newest[family] = max(newest.get(family, 0), int(version))
