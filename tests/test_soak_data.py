@@ -19,7 +19,9 @@ SOAK = json.loads((ROOT / "docs" / "data" / "soak.json").read_text())
 IDS = sorted(k for k in gym.registry if k.startswith("FoodFetch-"))
 # Registered ids the committed soak does not hold yet, with why; an id soaked later must
 # leave this table (the first test fails until it does).
-NOT_SOAKED: dict[str, str] = {}
+NOT_SOAKED: dict[str, str] = {
+    "FoodFetch-TwoRows-v3": "not soaked yet: 1000 episodes take about 35 min of one core "
+                            "(python benchmarks/soak.py --env FoodFetch-TwoRows-v3 adds it)"}
 
 
 def test_every_registered_id_was_soaked() -> None:
