@@ -152,15 +152,20 @@ def sample_wide_material(rng: np.random.Generator, young: float | None = None) -
         mu=float(rng.uniform(*food_space.MU_RANGE)), plate_mu=PLATE_MU, name="sampled")
 
 
+def _pieces_in_row(rng: np.random.Generator, size: float, spacing: float) -> int:
+    """Two or three pieces across the clamp, three only where they fit
+    ``ANY_SHAPE_ROW_WIDTH`` (every shape's extent across the clamp is its size)."""
+    n_max = 3 if 3 * size + 2 * spacing <= ANY_SHAPE_ROW_WIDTH else 2
+    return int(rng.integers(2, n_max + 1))
+
+
 def sample_any_shape_row(rng: np.random.Generator) -> tuple[Piece, ...]:
     """A row of the "any_shape" space (:data:`ANY_SHAPE_SAMPLING`): two or three equal pieces
     of one shape and material side by side across the clamp direction."""
     shape = str(rng.choice(SHAPES))
     size = float(rng.uniform(*ANY_SHAPE_ROW_SIZE_RANGE))
     spacing = float(rng.choice(ROW_SPACINGS))
-    # every shape's extent across the clamp (x) is its size
-    n_max = 3 if 3 * size + 2 * spacing <= ANY_SHAPE_ROW_WIDTH else 2
-    n = int(rng.integers(2, n_max + 1))
+    n = _pieces_in_row(rng, size, spacing)
     return grid(1, n, size, 0.001, spacing, sample_wide_material(rng),
                 shape=shape)  # type: ignore[arg-type]
 
@@ -170,8 +175,7 @@ def sample_any_shape_two_rows(rng: np.random.Generator) -> tuple[Piece, ...]:
     rows along the clamp of two or three equal pieces of one shape and material each."""
     shape = str(rng.choice(SHAPES))
     size = float(rng.uniform(*ANY_SHAPE_TWO_ROWS_SIZE_RANGE))
-    fits = 3 * size + 2 * TWO_ROWS_SPACING_ACROSS <= ANY_SHAPE_ROW_WIDTH
-    n = int(rng.integers(2, (3 if fits else 2) + 1))
+    n = _pieces_in_row(rng, size, TWO_ROWS_SPACING_ACROSS)
     young = float(rng.choice(RESOLVED_TWO_ROWS_YOUNG))
     return grid(2, n, size, TWO_ROWS_SPACING_ALONG, TWO_ROWS_SPACING_ACROSS,
                 sample_wide_material(rng, young), shape=shape)  # type: ignore[arg-type]
