@@ -15,14 +15,14 @@ Reported per id: the median RSS and the median episode time (wall, and the proce
 time) over an early window (episodes 10 % to 20 % of the run: past the start, when the scene
 caches fill and the allocator warms up) and over the last 10 % (episodes 900-1000 of 1000),
 the growth between them in MiB and %, and whether they meet the limits a soak must meet
-(growth under ``RSS_LIMIT_MIB``, and the median CPU time per episode under ``TIME_LIMIT``
-higher: on a machine shared with other jobs the wall time follows their load, the CPU time
-what an episode costs).  Single RSS readings vary with the scene (a diced mix's compiled
+(growth under ``RSS_LIMIT_MIB``); the windows' CPU times are reported, not limited, since
+they hold different scenes.  Single RSS readings vary with the scene (a diced mix's compiled
 model is larger than a block's), which is why windows of medians are compared, not ends.
 
 At the end the early window's episodes run again (same seeds and actions): their CPU times
 against the first run's, episode by episode, tell a slowdown of the process from the spread
-between scenes.
+between scenes, and the median of those ratios must stay under ``TIME_LIMIT`` higher (CPU
+time, not wall time: on a machine shared with other jobs the wall time follows their load).
 
 The JSON (default ``docs/data/soak.json``) is rewritten atomically every ``--flush`` episodes
 and at the end of each id, so a stopped run leaves a valid file with what finished (marked
@@ -51,7 +51,7 @@ import fetch_env
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = ROOT / "docs" / "data" / "soak.json"
 RSS_LIMIT_MIB = 20.0  # most growth of the median RSS, late window against early
-TIME_LIMIT = 0.10  # most relative growth of the median episode time
+TIME_LIMIT = 0.10  # most relative growth of the rerun episodes' CPU time (paired median)
 EARLY = (0.10, 0.20)  # share of the run: episodes 100-200 of 1000
 LATE = (0.90, 1.00)  # episodes 900-1000 of 1000
 
@@ -104,7 +104,7 @@ def summarize(rss: list[float], wall: list[float], cpu: list[float]) -> dict[str
         "episode_time_change_pct": round(100 * time_change, 2),
         "episode_cpu_s_median_early": round(c0, 4), "episode_cpu_s_median_late": round(c1, 4),
         "episode_cpu_change_pct": round(100 * cpu_change, 2),
-        "rss_ok": bool(growth_mib < RSS_LIMIT_MIB), "time_ok": bool(cpu_change < TIME_LIMIT),
+        "rss_ok": bool(growth_mib < RSS_LIMIT_MIB),
     }
 
 

@@ -1,7 +1,11 @@
 """The committed soak (docs/data/soak.json, ``benchmarks/soak.py``) covers every registered id
 at 1000 episodes in one process and meets the limits a long run must: the median resident
 memory of the last tenth of episodes under 20 MiB above that of the second tenth, and the
-median CPU time per episode under 10 % above."""
+second tenth's episodes, run again at the end with the same seeds and actions, under 10 %
+dearer in CPU time (median of the paired ratios).  The CPU time of the two windows is
+recomputed and reported, not limited: they hold different scenes, and a multi-piece id's
+episode cost varies twofold with its scene, so their medians differ by up to 18 % with no
+slowdown at all (TwoRows-v1: -17.9 % while the rerun episodes cost -4.1 %)."""
 
 from __future__ import annotations
 
@@ -19,9 +23,7 @@ SOAK = json.loads((ROOT / "docs" / "data" / "soak.json").read_text())
 IDS = sorted(k for k in gym.registry if k.startswith("FoodFetch-"))
 # Registered ids the committed soak does not hold yet, with why; an id soaked later must
 # leave this table (the first test fails until it does).
-NOT_SOAKED: dict[str, str] = {
-    "FoodFetch-TwoRows-v3": "not soaked yet: 1000 episodes take about 35 min of one core "
-                            "(python benchmarks/soak.py --env FoodFetch-TwoRows-v3 adds it)"}
+NOT_SOAKED: dict[str, str] = {}
 
 
 def test_every_registered_id_was_soaked() -> None:
@@ -41,8 +43,15 @@ def test_the_soak_meets_the_limits(env_id: str) -> None:
     growth = np.median(rss[l0:l1]) - np.median(rss[e0:e1])
     change = np.median(cpu[l0:l1]) / np.median(cpu[e0:e1]) - 1
     assert growth == pytest.approx(s["rss_growth_mib"], abs=0.02)  # (readings stored to 0.01 MiB)
+    assert 100 * change == pytest.approx(s["episode_cpu_change_pct"], abs=0.05)
     assert growth < SOAK["limits"]["rss_growth_mib"]
-    assert change < SOAK["limits"]["episode_time_change"]
+    # the slowdown check: the same episodes, early against late, paired
+    again = run["replay"]
+    first = cpu[slice(*again["episodes"])]
+    assert (again["episodes"][0], again["episodes"][1]) == (e0, e1)
+    slowdown = np.median(np.array(again["cpu_s_again"]) / first) - 1
+    assert 100 * slowdown == pytest.approx(again["median_paired_change_pct"], abs=0.05)
+    assert slowdown < SOAK["limits"]["episode_time_change"]
 
 
 def test_a_rerun_keeps_each_kept_id_s_machine_and_stamps_its_own(tmp_path: Path,
