@@ -76,7 +76,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -131,6 +131,20 @@ MIXED_LAYOUTS: frozenset[str] = frozenset({"diced"})
 FIXED_DEPTH_SCENES: dict[tuple[str, str], tuple[str, str]] = {
     ("two_rows", "any_shape_two_rows"): ("dx_any_shape_two_rows",
                                          "dx_any_shape_two_rows_cubes")}
+
+
+class _Food(NamedTuple):
+    """The food model the plan works with: SLS springs [N/m], friction, Prony terms."""
+
+    k1: float
+    k2: float
+    mu: float
+    tau1: float
+    g1: float
+    visco_ok: bool
+    fric_ok: bool
+
+
 FOOD_DENSITY = 1050.0  # [kg/m^3] the middle of the scenes' densities, for the cube test
 
 
@@ -163,7 +177,10 @@ class ModelBasedAgent(Agent):
 
     # ----------------------------------------------------------------- the model
     def plan(self, obs: np.ndarray) -> dict[str, Any]:
-        """The physical action and the numbers behind it (also kept as ``last_plan``)."""
+        """The physical action and the numbers behind it (also kept as ``last_plan``).
+
+        In phases: the food's model (the estimates, or the prior where they are invalid),
+        the lift speed, the squeeze per face and its clamp angle, then the clamp speed."""
         c, geo = self.config, self.geometry
         d = decode_observation(obs)
         height = float(d["max_height"])
@@ -171,7 +188,30 @@ class ModelBasedAgent(Agent):
         L = lever(geo, height)
         # Mass held: all the pieces (conservative for a mix, where some may escape).
         mass = float(d["total_mass"])
+        food = self._food_model(d, height, w)
+        lift_speed, t_s = self._lift_speed(food)
+        a_lift = lift_speed / c.lift_ramp
+        # Grip: 2 mu K1 dx >= SF m (g + a)  ->  the smallest squeeze per face.
+        dx_grip = c.safety_factor * mass * (G + a_lift) / (2.0 * food.mu * food.k1)
+        dx, eps, limited = self._squeeze(d, w, mass, dx_grip)
+        lo, hi = ACTION_RANGES["theta_d"]
+        theta = float(np.clip(clamp_angle(geo, height, dx), lo, hi))
+        omega, m_peak = self._clamp_speed(theta, L, dx, food)
+        slo, shi = ACTION_RANGES["lift_speed"]
+        lift_speed = float(np.clip(lift_speed, slo, shi))
+        le_pred = -math.log(max(1.0 - eps, 1e-9))
+        self.last_plan = {
+            "theta_d": theta, "omega": omega, "lift_speed": lift_speed, "L": L, "width": w,
+            "dx": dx, "eps": eps, "eps_grip": 2.0 * dx_grip / w, "le_pred": le_pred,
+            "grip_margin": 2.0 * food.mu * food.k1 * dx / (mass * (G + a_lift)),
+            "t_s": t_s, "m_peak": m_peak, "visco_valid": food.visco_ok,
+            "friction_valid": food.fric_ok, "limited": limited}
+        return self.last_plan
 
+    def _food_model(self, d: dict[str, Any], height: float, w: float) -> _Food:
+        """K1, K2, B, mu (and tau1, g1) from the estimates, or from the prior where a flag
+        says an estimate is invalid."""
+        c = self.config
         visco_ok = bool(d["visco_valid"] >= 0.5 and math.isfinite(d["K1"]) and d["K1"] > 0)
         fric_ok = bool(d["friction_valid"] >= 0.5 and math.isfinite(d["mu"]) and d["mu"] > 0)
         if visco_ok:
@@ -183,19 +223,24 @@ class ModelBasedAgent(Agent):
         mu = float(d["mu"]) if fric_ok else c.prior_mu
         tau1 = b / k2 if k2 > 0 else c.prior_tau1
         g1 = k2 / (k1 + k2) if (k1 + k2) > 0 else c.prior_g1
+        return _Food(k1, k2, mu, tau1, g1, visco_ok, fric_ok)
 
-        # Lift speed: finish the lift at the settling time t_s, or at once when time costs
-        # (see module docstring).
-        ratio = g1 / max((1.0 - g1) * c.settling_tolerance, 1e-9)
-        t_s = tau1 * math.log(max(ratio, 1.0))
+    def _lift_speed(self, food: _Food) -> tuple[float, float]:
+        """The lift speed [m/s] that finishes the lift at the settling time t_s, or at once
+        when time costs (see the module docstring), and t_s [s]."""
+        c = self.config
+        ratio = food.g1 / max((1.0 - food.g1) * c.settling_tolerance, 1e-9)
+        t_s = food.tau1 * math.log(max(ratio, 1.0))
         t_lift = max(t_s - c.hold, 1e-3)
         lift_speed = float(np.clip(c.lift_height / t_lift, c.lift_speed_min, c.lift_speed_max))
-        if self.time_weight > 0:
-            lift_speed = c.lift_speed_fast
-        a_lift = lift_speed / c.lift_ramp
+        return (c.lift_speed_fast if self.time_weight > 0 else lift_speed), t_s
 
-        # Grip: 2 mu K1 dx >= SF m (g + a)  ->  the smallest squeeze per face.
-        dx_grip = c.safety_factor * mass * (G + a_lift) / (2.0 * mu * k1)
+    def _squeeze(self, d: dict[str, Any], w: float, mass: float, dx_grip: float
+                 ) -> tuple[float, float, str]:
+        """The squeeze per face dx [m], its strain of the width and why it was limited
+        ("" where it was not): a fixed depth or share of the span where the scene family
+        has one, else the grip's squeeze within the safe strain."""
+        c = self.config
         eps_grip = 2.0 * dx_grip / w
         eps_safe = 1.0 - math.exp(-c.strain_margin * c.safe_log_strain)
         eps_cap = 1.0 - math.exp(-(c.safe_log_strain + c.overshoot))
@@ -215,51 +260,29 @@ class ModelBasedAgent(Agent):
                 limited = "grip needs more squeeze than the safe strain"
                 eps = max(min(eps_grip, eps_cap), eps_safe)
         dx = eps * w / 2.0
-        # A fast clamp that would stall squeezes less if that still grips (one piece only: in
-        # a mix the probed piece's stiffness says little about the others').
-        if self.time_weight > 0 and d["n_pieces"] == 1:
-            dx_stall = self._stall_squeeze((geo.gap + dx) / L, L, k1, k2, tau1)
-            if dx_grip <= dx_stall < dx:
-                dx, eps = dx_stall, 2.0 * dx_stall / w
-                limited = "squeeze lowered to keep the fast clamp under the motor's stall"
-        theta = clamp_angle(geo, height, dx)
-        lo, hi = ACTION_RANGES["theta_d"]
-        theta = float(np.clip(theta, lo, hi))
+        return dx, eps, limited
 
-        # Clamp speed: keep the instantaneous moment L dx (K1 + K2 phi) below the stall.
+    def _clamp_speed(self, theta: float, L: float, dx: float, food: _Food
+                     ) -> tuple[float, float]:
+        """The clamp speed [rad/s] that keeps the instantaneous moment L dx (K1 + K2 phi)
+        below the stall, halved at most eight times, and that peak moment [N m]."""
+        c = self.config
         omega = c.omega_fast if self.time_weight > 0 else c.omega
         stall = c.stall_margin * c.stall_moment
         # Slowing down relaxes only the Maxwell arm: where the relaxed moment L dx K1 alone
         # passes the stall, a slower clamp stalls all the same and, when time costs, only
         # costs time.
-        hopeless = self.time_weight > 0 and L * dx * k1 > stall
+        hopeless = self.time_weight > 0 and L * dx * food.k1 > stall
         # On a mix the probed piece's stiffness does not predict the moment of the pieces
         # between the blades (see the module docstring), so the clamp is not slowed for it.
         keep_speed = hopeless or self.layout in MIXED_LAYOUTS
         for _ in range(8):
-            m_peak = L * dx * (k1 + k2 * _maxwell_share(theta / omega, tau1))
+            m_peak = L * dx * (food.k1 + food.k2 * _maxwell_share(theta / omega, food.tau1))
             if m_peak <= stall or omega <= c.omega_min or keep_speed:
                 break
             omega = max(omega / 2.0, c.omega_min)
         olo, ohi = ACTION_RANGES["omega"]
-        slo, shi = ACTION_RANGES["lift_speed"]
-        omega = float(np.clip(omega, olo, ohi))
-        lift_speed = float(np.clip(lift_speed, slo, shi))
-        le_pred = -math.log(max(1.0 - eps, 1e-9))
-        self.last_plan = {
-            "theta_d": theta, "omega": omega, "lift_speed": lift_speed, "L": L, "width": w,
-            "dx": dx, "eps": eps, "eps_grip": eps_grip, "le_pred": le_pred,
-            "grip_margin": 2.0 * mu * k1 * dx / (mass * (G + a_lift)),
-            "t_s": t_s, "m_peak": m_peak, "visco_valid": visco_ok, "friction_valid": fric_ok,
-            "limited": limited}
-        return self.last_plan
-
-    def _stall_squeeze(self, theta: float, L: float, k1: float, k2: float,
-                       tau1: float) -> float:
-        """The squeeze per face [m] whose peak moment at ``omega_fast`` is the stall limit."""
-        c = self.config
-        phi = _maxwell_share(theta / c.omega_fast, tau1)
-        return c.stall_margin * c.stall_moment / (L * (k1 + k2 * phi))
+        return float(np.clip(omega, olo, ohi)), m_peak
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         p = self.plan(obs)
