@@ -263,7 +263,8 @@ def encode_observation(values: Mapping[str, float]) -> np.ndarray:
 
 def decode_observation(obs: Any) -> dict[str, float]:
     """The observation back in SI units (see ``OBS_UNITS``); estimated parameters whose
-    validity flag is 0 decode to NaN."""
+    validity flag is 0 decode to NaN, and counts to whole numbers (float32 leaves one
+    piece as 1.0000000149, which a rule testing ``== 1`` would miss)."""
     o = _as_floats("observation", obs, f"{len(OBS_NAMES)} finite numbers")
     if o.shape != (len(OBS_NAMES),):
         raise InvalidParameterError(
@@ -274,6 +275,8 @@ def decode_observation(obs: Any) -> dict[str, float]:
     for i, n in enumerate(OBS_NAMES):
         transform, scale, _ = OBS_SPEC[n]
         out[n] = float(10.0 ** o[i] * scale if transform == "log10" else o[i] * scale)
+        if OBS_SPEC[n][2] == "count":
+            out[n] = float(round(out[n]))
     for group, names in (("visco_valid", VISCO_NAMES), ("friction_valid", FRICTION_NAMES)):
         if out[group] < 0.5:
             for n in names:

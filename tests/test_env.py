@@ -156,6 +156,8 @@ def test_observation_round_trip_and_flags() -> None:
     dec = decode_observation(obs)
     for k, v in values.items():
         assert dec[k] == pytest.approx(v, rel=1e-6), k
+    for n in range(1, 17):  # counts come back whole, not as float32 leaves them
+        assert decode_observation(encode_observation({**values, "n_pieces": n}))["n_pieces"] == n
     assert dec["min_spacing_across"] == pytest.approx(0.0001, rel=1e-5)
     # a cleared flag hides its group; a wild estimate clears the flag
     dec = decode_observation(encode_observation({**values, "friction_valid": 0.0}))
