@@ -193,7 +193,8 @@ class ModelBasedAgent(Agent):
         a_lift = lift_speed / c.lift_ramp
         # Grip: 2 mu K1 dx >= SF m (g + a)  ->  the smallest squeeze per face.
         dx_grip = c.safety_factor * mass * (G + a_lift) / (2.0 * food.mu * food.k1)
-        dx, eps, limited = self._squeeze(d, w, mass, dx_grip)
+        eps_grip = 2.0 * dx_grip / w
+        dx, eps, limited = self._squeeze(d, w, mass, eps_grip)
         lo, hi = ACTION_RANGES["theta_d"]
         theta = float(np.clip(clamp_angle(geo, height, dx), lo, hi))
         omega, m_peak = self._clamp_speed(theta, L, dx, food)
@@ -202,7 +203,7 @@ class ModelBasedAgent(Agent):
         le_pred = -math.log(max(1.0 - eps, 1e-9))
         self.last_plan = {
             "theta_d": theta, "omega": omega, "lift_speed": lift_speed, "L": L, "width": w,
-            "dx": dx, "eps": eps, "eps_grip": 2.0 * dx_grip / w, "le_pred": le_pred,
+            "dx": dx, "eps": eps, "eps_grip": eps_grip, "le_pred": le_pred,
             "grip_margin": 2.0 * food.mu * food.k1 * dx / (mass * (G + a_lift)),
             "t_s": t_s, "m_peak": m_peak, "visco_valid": food.visco_ok,
             "friction_valid": food.fric_ok, "limited": limited}
@@ -235,13 +236,12 @@ class ModelBasedAgent(Agent):
         lift_speed = float(np.clip(c.lift_height / t_lift, c.lift_speed_min, c.lift_speed_max))
         return (c.lift_speed_fast if self.time_weight > 0 else lift_speed), t_s
 
-    def _squeeze(self, d: dict[str, Any], w: float, mass: float, dx_grip: float
+    def _squeeze(self, d: dict[str, Any], w: float, mass: float, eps_grip: float
                  ) -> tuple[float, float, str]:
         """The squeeze per face dx [m], its strain of the width and why it was limited
         ("" where it was not): a fixed depth or share of the span where the scene family
         has one, else the grip's squeeze within the safe strain."""
         c = self.config
-        eps_grip = 2.0 * dx_grip / w
         eps_safe = 1.0 - math.exp(-c.strain_margin * c.safe_log_strain)
         eps_cap = 1.0 - math.exp(-(c.safe_log_strain + c.overshoot))
         fixed_field = FIXED_SQUEEZE_LAYOUTS.get(self.layout or "")

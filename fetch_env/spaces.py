@@ -273,9 +273,9 @@ def decode_observation(obs: Any) -> dict[str, float]:
         raise InvalidParameterError(f"observation must be finite, got {_short(obs)}")
     out: dict[str, float] = {}
     for i, n in enumerate(OBS_NAMES):
-        transform, scale, _ = OBS_SPEC[n]
+        transform, scale, unit = OBS_SPEC[n]
         out[n] = float(10.0 ** o[i] * scale if transform == "log10" else o[i] * scale)
-        if OBS_SPEC[n][2] == "count":
+        if unit == "count":
             out[n] = float(round(out[n]))
     for group, names in (("visco_valid", VISCO_NAMES), ("friction_valid", FRICTION_NAMES)):
         if out[group] < 0.5:
