@@ -3,7 +3,9 @@
 For each layout, resets the env on held-back seeds (Block: ``tests/test_env_slow.HELD_BACK``,
 90000-90063; the other layouts: 90000-90031) with the default ``env`` probes calibrated and
 uncalibrated (``probe_calibrated``) and with the ``measure`` and ``repeated`` probes
-calibrated (``probes="measure"``, ``probes="repeated"``), and reports, per parameter, the
+calibrated (``probes="measure"``, ``probes="repeated"``; where a preset has a calibration
+fitted on the layout's own scenes, which the env applies, also with the food-space one), and
+reports, per parameter, the
 median, 95th percentile and max of |model / oracle - 1| (g1, tau1 and mu: the material's,
 exact; K1, K2, B: the oracle's nominal ``2 E A / l``, so only their scatter means much), the
 probes' median wall time per reset and the reset's median CPU time (this process's, so the
@@ -34,23 +36,31 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from agents.atomic import write_atomic
 from fetch_env.env import FoodFetchEnv
 from fetch_env.env_scenes import SCENE_SPACES
-from fetch_env.probes import PARAM_NAMES
+from fetch_env.probes import PARAM_NAMES, PROBE_CALIBRATIONS, calibration_for
 
 LAYOUTS = {"block": 64, "row": 32, "two_rows": 32, "diced": 32}
 FIRST_SEED = 90_000
 
 
-# (probes preset, calibrated) per layout
+# (probes preset, calibrated) per layout; where a preset has a calibration fitted on the
+# layout's own scenes (fetch_env.probes.calibration_for), the env applies that one, and the
+# preset is also run with its food-space calibration, to compare
 VARIANTS: tuple[tuple[str, bool], ...] = (("env", True), ("env", False), ("measure", True),
                                           ("repeated", True))
 
 
 def run(layout: str, probes: str, calibrated: bool, seeds: list[int],
-        scenes: str = "study") -> dict[str, Any]:
+        scenes: str = "study", food_space: bool = False) -> dict[str, Any]:
     """Reset on every seed; the errors per parameter, the probes' wall times and the
-    resets' CPU times."""
+    resets' CPU times.  ``food_space``: apply the preset's food-space calibration even where
+    the env would apply one fitted on the layout's scenes."""
     env = FoodFetchEnv(layout=layout, estimator="model", probes=probes,
                        probe_calibrated=calibrated, scenes=scenes)
+    if food_space:
+        env.probe_calibration = PROBE_CALIBRATIONS[probes]
+    cal = env.probe_calibration
+    label = ("no" if cal is None else "food space" if cal is PROBE_CALIBRATIONS.get(probes)
+             else f"{layout} scenes")
     errs: dict[str, list[float]] = {k: [] for k in PARAM_NAMES}
     walls, cpus = [], []
     for seed in seeds:
@@ -62,6 +72,7 @@ def run(layout: str, probes: str, calibrated: bool, seeds: list[int],
             est = info["estimated_params"][k]
             errs[k].append(float("nan") if est is None else est / info["true_params"][k] - 1)
     return {"layout": layout, "scenes": scenes, "probes": probes, "calibrated": calibrated,
+            "calibration": label,
             "seeds": [seeds[0], seeds[-1]], "errors": errs,
             "wall_median": float(np.median(walls)), "reset_cpu_median": float(np.median(cpus))}
 
@@ -76,7 +87,7 @@ def summary(errs: list[float]) -> dict[str, float]:
 
 
 def table(results: list[dict[str, Any]]) -> str:
-    lines = ["| layout | probes | calibrated | scenes | " + " | ".join(
+    lines = ["| layout | probes | calibration | scenes | " + " | ".join(
         f"{k} median / 95th" for k in ("g1", "tau1", "mu"))
         + " | reset CPU | against env probes |", "|---|---|---|---|---|---|---|---|---|"]
     base = {r["layout"]: r["reset_cpu_median"] for r in results
@@ -89,8 +100,8 @@ def table(results: list[dict[str, Any]]) -> str:
         n = len(r["errors"]["g1"])
         cpu, ref = r["reset_cpu_median"], base.get(r["layout"])
         ratio = f"{cpu / ref:.2f}x" if ref else ""
-        lines.append(f"| {r['layout']} | {r['probes']} | "
-                     f"{'yes' if r['calibrated'] else 'no'} | {n} | " + " | ".join(cells)
+        label = r.get("calibration", "food space" if r["calibrated"] else "no")
+        lines.append(f"| {r['layout']} | {r['probes']} | {label} | {n} | " + " | ".join(cells)
                      + f" | {1e3 * cpu:.0f} ms | {ratio} |")
     return "\n".join(lines) + "\n"
 
@@ -105,8 +116,14 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.workers < 1:
         p.error("--workers must be >= 1")
-    jobs = [(lay, probes, cal, list(range(FIRST_SEED, FIRST_SEED + LAYOUTS[lay])), args.scenes)
-            for lay in args.layouts for probes, cal in VARIANTS]
+    jobs = []
+    for lay in args.layouts:
+        seeds = list(range(FIRST_SEED, FIRST_SEED + LAYOUTS[lay]))
+        for probes, cal in VARIANTS:
+            jobs.append((lay, probes, cal, seeds, args.scenes, False))
+            own = calibration_for(probes, lay, args.scenes)
+            if cal and own is not PROBE_CALIBRATIONS.get(probes):
+                jobs.append((lay, probes, cal, seeds, args.scenes, True))
     with ProcessPoolExecutor(args.workers) as pool:
         results = list(pool.map(run, *zip(*jobs, strict=True)))
     meta = {"machine": platform.machine(), "cpus": os.cpu_count(),

@@ -17,7 +17,10 @@ from the elastic twin).  Writes, under ``--out``:
         --out docs/data/validation
 
 Tune on ``--set tuning`` (seed ``TUNING_SEED``), report ``--set reporting``
-(``REPORTING_SEED``): the two designs share no food.
+(``REPORTING_SEED``): the two designs share no food.  ``--set block`` draws the single pieces
+of the environments' Block scenes (study space, seed ``BLOCK_CALIBRATION_SEED``), which the
+Block calibration is fitted on; its accuracy is reported on the environments' held-back seeds
+(``benchmarks/bench_env_estimates.py``).
 """
 
 from __future__ import annotations
@@ -49,6 +52,8 @@ from estimators.calibration import (
     fit_error_model,
 )
 from estimators.errors import EstimationError
+from fetch_env.env_scenes import BLOCK_CALIBRATION_SEED, block_foods
+from fetch_env.env_scenes import YOUNG_RANGE as BLOCK_YOUNG_RANGE
 from fetch_env.food_space import (
     REPORTING_SEED,
     STIFF_YOUNG_RANGE,
@@ -68,12 +73,17 @@ from fetch_env.probes import (
     ProbeOutcome,
     apply_calibration,
     run_probes,
+    scene_calibration_key,
     true_parameters_exact,
 )
 from fetch_env.scene import Geometry
 from fetch_env.spaces import VISCO_NAMES
 
-SETS = ("tuning", "reporting", "corners", "stiff")
+SETS = ("tuning", "reporting", "corners", "stiff", "block")
+# Sets a calibration may be fitted on, and the key it is written under in the package's
+# calibration file ("block": the pieces of the study space's Block scenes,
+# fetch_env.env_scenes.block_foods, for the environments' Block observations).
+FIT_SETS = {"tuning": "{preset}", "block": scene_calibration_key("{preset}", "block", "study")}
 
 
 def foods_of(name: str, n: int) -> list[Food]:
@@ -84,6 +94,8 @@ def foods_of(name: str, n: int) -> list[Food]:
         return sample_foods(n, REPORTING_SEED)
     if name == "stiff":
         return sample_foods(n, REPORTING_SEED + 1, young_range=STIFF_YOUNG_RANGE)
+    if name == "block":
+        return block_foods(n)
     return corner_foods()[:n]
 
 
@@ -316,9 +328,11 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool) -> int:
     runs', and write them into the package; or, with ``check``, print what an 8-fold
     cross-validation over the foods gives instead (coverage, reliability per run)."""
     data = [json.loads(run.read_text()) for run in runs]
+    fit_set = data[0]["meta"]["set"]
     for run, d in zip(runs, data, strict=True):
-        if d["meta"]["set"] != "tuning" or d["meta"]["preset"] != preset:
-            raise SystemExit(f"{run}: fit a calibration on tuning runs of preset {preset!r}")
+        if d["meta"]["set"] != fit_set or fit_set not in FIT_SETS or d["meta"]["preset"] != preset:
+            raise SystemExit(f"{run}: fit a calibration on runs of preset {preset!r} and one "
+                             f"of the sets {sorted(FIT_SETS)}, all of one set")
     if data[0]["meta"].get("calibration") is not None or data[0]["meta"]["noise"] != 0:
         raise SystemExit(f"{runs[0]}: fit a calibration on an uncalibrated run without noise")
     records = [d["records"] for d in data]
@@ -332,7 +346,7 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool) -> int:
               f"{meta['n']} foods, preset {preset})")
     cal = fit_models(records[0], records, source=source)
     table_ = json.loads(CALIBRATION_FILE.read_text()) if CALIBRATION_FILE.exists() else {}
-    table_[preset] = cal.to_dict()
+    table_[FIT_SETS[fit_set].format(preset=preset)] = cal.to_dict()
     _write_atomic(CALIBRATION_FILE, json.dumps(table_, indent=1) + "\n")
     print(json.dumps(cal.to_dict(), indent=1))
     return 0
@@ -467,6 +481,9 @@ def main(argv: list[str] | None = None) -> int:
     if not 1 <= args.n <= 4096 or not 0 <= args.noise <= 0.5 or args.workers < 1:
         p.error("--n in [1, 4096], --noise in [0, 0.5], --workers >= 1")
     calibrated = not args.no_calibration and args.preset in PROBE_CALIBRATIONS
+    if args.set == "block" and calibrated:
+        p.error("--set block holds the foods a Block calibration is fitted on: run it with "
+                "--no-calibration")
     name = args.name or (f"{args.set}_{args.preset}{'' if calibrated else '_uncal'}"
                          f"_noise{args.noise:g}")
     args.out.mkdir(parents=True, exist_ok=True)
@@ -475,11 +492,12 @@ def main(argv: list[str] | None = None) -> int:
     if not args.resume and jsonl.exists():
         jsonl.unlink()
     foods = [f for f in foods_of(args.set, args.n) if f.index not in done]
-    seed = {"tuning": TUNING_SEED, "reporting": REPORTING_SEED,
-            "stiff": REPORTING_SEED + 1, "corners": 0}[args.set]
+    seed = {"tuning": TUNING_SEED, "reporting": REPORTING_SEED, "stiff": REPORTING_SEED + 1,
+            "corners": 0, "block": BLOCK_CALIBRATION_SEED}[args.set]
     meta = {"set": args.set, "n": args.n, "seed": seed, "preset": args.preset,
-            "noise": args.noise, "young_range": list(STIFF_YOUNG_RANGE if args.set == "stiff"
-                                                      else YOUNG_RANGE),
+            "noise": args.noise, "young_range": list(
+                {"stiff": STIFF_YOUNG_RANGE, "block": BLOCK_YOUNG_RANGE}.get(args.set,
+                                                                           YOUNG_RANGE)),
             "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
             "cpus": os.cpu_count(), "python": platform.python_version(),
             "systematic_sd": dict(PROBE_SYSTEMATIC_SD),

@@ -47,10 +47,10 @@ from fetch_env.errors import (
 from fetch_env.layouts import Piece
 from fetch_env.probes import (
     PARAM_NAMES,
-    PROBE_CALIBRATIONS,
     PROBE_PRESETS,
     ProbeConfig,
     ProbeOutcome,
+    calibration_for,
     probe_piece_index,
     run_probes,
     true_parameters,
@@ -174,10 +174,13 @@ _COMMON_DOC = """
     Block episode; the accuracy on held-back scenes is in the README and
     ``docs/validation/probes.md``.  ``probes="measure"`` runs the one-clamp probes of
     ``food-fetch estimate --probes measure`` instead (a 20 s hold, a 0.3 s slide;
-    ``fetch_env.probes.PROBE_PRESETS``), with their own calibration: on the 64 held-back
-    Block scenes tau1's 95th percentile error falls from 16 % to 8 % and g1's from 7 % to
-    4 %, for 1.3x the reset's CPU time; ``probes="repeated"`` (seven clamps) takes tau1's
-    median from 2.1 % to 1.4 %, for 5.8x (``docs/estimator_validation.md``).
+    ``fetch_env.probes.PROBE_PRESETS``), with their own calibration, and on Block scenes of
+    the study space with the one fitted on 256 such scenes
+    (``fetch_env.probes.calibration_for``): on the 64 held-back Block scenes g1, tau1 and mu
+    are within 1.1, 1.6 and 0.1 % (median; 95th percentile 3.4, 7.2 and 1.8 %), against
+    the default probes' 1.3, 3.0 and 0.1 % (6.7, 15.9 and 6.2 %), for 1.37x the reset's
+    CPU time; ``probes="repeated"`` (seven clamps, the food space's calibration) gives
+    tau1 1.4 / 7.3 %, for 6.8x (``docs/estimator_validation.md``).
     ``probe_time_scale=1, probe_time_growth=0`` simulates the hold in real time (the unscaled
     reference); ``probe_hold=0.3`` still gives mu but g1 and tau1 only coarsely or not at
     all.
@@ -334,6 +337,9 @@ _COMMON_DOC = """
       wide scene space (``scenes="wide"``: the estimators' food space, 8-25 mm, 0.0123-5 MPa,
       mu 0.1-0.8; slippery, very soft, stiff, small and large pieces).  Physics, probes,
       actions and observations are those of v0.
+    - v0 (0.2.0): ``probes="measure"`` on Block scenes of the study space applies the
+      calibration fitted on such scenes (``info["probe_calibration"]`` names it); the
+      default probes' observations are unchanged.
     - v0 (0.2.0): the model's estimates are calibrated (``probe_calibrated``; False gives the
       0.1.0 estimates but for mu, now the slip ratio's 0.99 quantile where its plateau is
       lower, was 0.95); ``info["probe_calibration"]``.
@@ -551,14 +557,16 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         """The shipped probe calibration where asked for and fitted for these probes, else None.
 
         Each preset's calibration was fitted for its own settings; a preset with any setting
-        changed runs uncalibrated (``info["probe_calibration"]`` says which).
+        changed runs uncalibrated (``info["probe_calibration"]`` says which).  Where the
+        preset has one fitted on this layout's pieces in this scene space, that one
+        (:func:`fetch_env.probes.calibration_for`).
         """
         require(isinstance(probe_calibrated, bool), "probe_calibrated", probe_calibrated,
                 "True or False")
         preset_probes = (self.probe_config == PROBE_PRESETS[self.probes]
                          and self.geometry == Geometry())
-        return (PROBE_CALIBRATIONS.get(self.probes) if probe_calibrated and preset_probes
-                else None)
+        return (calibration_for(self.probes, self.layout, self.scenes)
+                if probe_calibrated and preset_probes else None)
 
     def _init_spaces_and_state(self) -> None:
         """Gymnasium's spaces and the episode's state before the first reset."""

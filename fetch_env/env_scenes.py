@@ -258,6 +258,33 @@ def sample_scene(layout: str, rng: np.random.Generator,
     raise InvalidParameterError(f"layout must be one of {LAYOUTS}, got {layout!r}")
 
 
+# The Block scenes of the study space (the -v0 ids') that the Block calibration of the probes
+# is fitted on (``fetch_env.probes.calibration_for``): scene i is ``sample_scene("block",
+# default_rng(BLOCK_CALIBRATION_SEED + i))``.  Disjoint from every seed the environments are
+# evaluated on (the held-back 90000-90063, the headroom scenes from 80000).
+BLOCK_CALIBRATION_SEED = 95_000
+
+
+def block_foods(n: int, seed: int = BLOCK_CALIBRATION_SEED) -> list[food_space.Food]:
+    """The single pieces of ``n`` Block scenes of the study space, as foods of the food space's
+    form (``index`` i: the scene drawn from ``default_rng(seed + i)``).
+
+    Raises:
+        InvalidParameterError: ``n`` not in [1, 4096] or a negative ``seed``.
+    """
+    require(isinstance(n, int | np.integer) and not isinstance(n, bool) and 1 <= n <= 4096,
+            "n", n, "an integer in [1, 4096]")
+    require(isinstance(seed, int | np.integer) and not isinstance(seed, bool) and seed >= 0,
+            "seed", seed, "an integer >= 0")
+    foods = []
+    for i in range(n):
+        (p,) = sample_scene("block", np.random.default_rng(seed + i))
+        m = p.material
+        foods.append(food_space.Food(i, p.shape, p.size, m.young, m.poisson, m.density, m.g1,
+                                     m.tau1, m.mu))
+    return foods
+
+
 def _diced(materials: tuple[str, ...], seed: int, n: int) -> Callable[[], tuple[Piece, ...]]:
     # A fixed generator: a preset must give the same pieces every time.
     return lambda: diced_mix(np.random.default_rng(seed), n_pieces=n, materials=materials,
