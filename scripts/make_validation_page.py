@@ -371,22 +371,26 @@ def step_convergence_section() -> str:
 
 
 # The -v2 and -v3 ids' own scene spaces: (space, what its scenes are)
-ANY_SHAPE_SPACES = (("any_shape", "FoodFetch-Row-v2's rows (`scenes=\"any_shape\"`: any "
-                     "shape, 8-22 mm)"),
+ANY_SHAPE_SPACES = (("wide", "The -v1 ids' Block scenes (`scenes=\"wide\"`: the food space's "
+                              "foods, FoodFetch-Block-v1), observed by default with the `env` "
+                              "probes"),
+                    ("any_shape", "FoodFetch-Row-v2's rows (`scenes=\"any_shape\"`: any "
+                     "shape, 8-22 mm), which that id observes with the `measure` probes"),
                     ("any_shape_two_rows", "FoodFetch-TwoRows-v3's plates (`scenes="
-                     "\"any_shape_two_rows\"`: two rows of any shape, 8-20 mm)"))
+                     "\"any_shape_two_rows\"`: two rows of any shape, 8-20 mm), which that id "
+                     "observes with the `measure` probes"))
 
 
 def any_shape_rows_section() -> str:
-    """FoodFetch-Row-v2's rows and FoodFetch-TwoRows-v3's plates (the "any_shape" and
-    "any_shape_two_rows" spaces) under every probe preset, where their runs are committed."""
+    """Block-v1's wide scenes, FoodFetch-Row-v2's rows and FoodFetch-TwoRows-v3's plates (the
+    "wide", "any_shape" and "any_shape_two_rows" spaces) under every probe preset, where their
+    runs are committed."""
     parts = []
     for space, what in ANY_SHAPE_SPACES:
         path = DATA / f"env_estimates_{space}.json"
         if path.exists():
             data = json.loads(path.read_text())
-            parts.append(f"{what}, which that id observes with the `measure` probes; the "
-                         "same seeds and columns. "
+            parts.append(f"{what}; the same seeds and columns. "
                          f"Command: `{data['meta']['command'].strip()}`.\n\n"
                          + env_table(data["results"]) + "\n")
     return "".join(parts)
