@@ -80,10 +80,16 @@ from fetch_env.scene import Geometry
 from fetch_env.spaces import VISCO_NAMES
 
 SETS = ("tuning", "reporting", "corners", "stiff", "block")
-# Sets a calibration may be fitted on, and the key it is written under in the package's
-# calibration file ("block": the pieces of the study space's Block scenes,
-# fetch_env.env_scenes.block_foods, for the environments' Block observations).
-FIT_SETS = {"tuning": "{preset}", "block": scene_calibration_key("{preset}", "block", "study")}
+# Sets a calibration may be fitted on: the food space's tuning foods, and the pieces of the
+# study space's Block scenes (fetch_env.env_scenes.block_foods), for the environments' Block
+# observations.
+FIT_SETS = ("tuning", "block")
+
+
+def calibration_key(fit_set: str, preset: str) -> str:
+    """The key a calibration of ``preset`` fitted on ``fit_set`` is written under in the
+    package's calibration file (what ``fetch_env.probes.calibration_for`` looks up)."""
+    return preset if fit_set == "tuning" else scene_calibration_key(preset, "block", "study")
 
 
 def foods_of(name: str, n: int) -> list[Food]:
@@ -332,7 +338,7 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool) -> int:
     for run, d in zip(runs, data, strict=True):
         if d["meta"]["set"] != fit_set or fit_set not in FIT_SETS or d["meta"]["preset"] != preset:
             raise SystemExit(f"{run}: fit a calibration on runs of preset {preset!r} and one "
-                             f"of the sets {sorted(FIT_SETS)}, all of one set")
+                             f"of the sets {FIT_SETS}, all of one set")
     if data[0]["meta"].get("calibration") is not None or data[0]["meta"]["noise"] != 0:
         raise SystemExit(f"{runs[0]}: fit a calibration on an uncalibrated run without noise")
     records = [d["records"] for d in data]
@@ -346,7 +352,7 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool) -> int:
               f"{meta['n']} foods, preset {preset})")
     cal = fit_models(records[0], records, source=source)
     table_ = json.loads(CALIBRATION_FILE.read_text()) if CALIBRATION_FILE.exists() else {}
-    table_[FIT_SETS[fit_set].format(preset=preset)] = cal.to_dict()
+    table_[calibration_key(fit_set, preset)] = cal.to_dict()
     _write_atomic(CALIBRATION_FILE, json.dumps(table_, indent=1) + "\n")
     print(json.dumps(cal.to_dict(), indent=1))
     return 0

@@ -158,10 +158,11 @@ def write_readme_table() -> None:
     tmp.replace(README)
 
 
-def cross_validated_runs(preset: str) -> list[tuple[dict[str, Any], dict[str, Any]]]:
-    """``preset``'s tuning runs and their held-out summaries (:func:`benchmarks.
-    validate_estimators.cross_validate`); empty where a run is missing."""
-    paths = [DATA / f"{stem}.json" for stem in CROSS_VALIDATED[preset]]
+def cross_validated_runs(stems: tuple[str, ...]) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+    """The runs named by ``stems`` (a calibration is fitted on the first, its error model on
+    all) and their held-out summaries (:func:`benchmarks.validate_estimators.cross_validate`);
+    empty where a run is missing."""
+    paths = [DATA / f"{stem}.json" for stem in stems]
     if not all(p.exists() for p in paths):
         return []
     runs = [json.loads(p.read_text()) for p in paths]
@@ -402,12 +403,10 @@ BLOCK_RUNS = ("block_measure_uncal_noise0", "block_measure_uncal_noise0.01")
 def block_calibration_section() -> str:
     """The `measure` probes' calibration fitted on the environments' Block scenes, cross-
     validated on those scenes (the held-back scenes are in the next section)."""
-    paths = [DATA / f"{stem}.json" for stem in BLOCK_RUNS]
-    if not all(p.exists() for p in paths):
+    runs = cross_validated_runs(BLOCK_RUNS)
+    if not runs:
         return ""
-    runs = [json.loads(p.read_text()) for p in paths]
-    held = cross_validate(runs[0]["records"], [r["records"] for r in runs])
-    meta = runs[0]["meta"]
+    meta = runs[0][0]["meta"]
     out = ["## A calibration for the Block scenes\n\n"
            "The environments' Block scenes (the study space's: every shape, 10-20 mm, "
            "0.05-5 MPa, g1 0.2-0.6, tau1 1-6 s, mu 0.15-0.6) span less than the food space, "
@@ -424,7 +423,7 @@ def block_calibration_section() -> str:
            "`--preset measure --fit-calibration docs/data/validation/"
            "block_measure_uncal_noise0.json docs/data/validation/"
            "block_measure_uncal_noise0.01.json`.\n\n"]
-    for run, summary in zip(runs, held, strict=True):
+    for run, summary in runs:
         m = run["meta"]
         out.append(table(summary, f"{m['set']} set, {m['n']} foods, seed {m['seed']}, "
                                   f"`measure` probes, noise {m['noise']:g}, held out") + "\n")
@@ -445,7 +444,7 @@ def main() -> int:
         parts.append(f"\nMachine: {meta['machine']}, {meta['cpus']} cores, Python "
                      f"{meta['python']}; {meta['wall_s']:.0f} s with 2 workers.  "
                      f"![errors]({'data/validation/' + stem}_errors.png)\n\n")
-    held = {preset: cross_validated_runs(preset) for preset in CROSS_VALIDATED}
+    held = {preset: cross_validated_runs(stems) for preset, stems in CROSS_VALIDATED.items()}
     parts.append(cross_validation_section(held))
     parts.append(repeats_section(held))
     parts.append(second_clamp_section())
