@@ -46,6 +46,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from estimators.calibration import (
     ERROR_INPUTS,
+    FORMS,
+    QUADRATIC_MIN_FOODS,
     Calibration,
     ErrorRow,
     fit_calibration,
@@ -329,10 +331,10 @@ def calibrate(records: list[dict[str, Any]], sd_now: dict[str, float],
     return out
 
 
-def _fit_calibration(runs: list[Path], preset: str, check: bool) -> int:
-    """Fit ``preset``'s calibration on the first run's records and its error model on all
-    runs', and write them into the package; or, with ``check``, print what an 8-fold
-    cross-validation over the foods gives instead (coverage, reliability per run)."""
+def _fit_calibration(runs: list[Path], preset: str, check: bool, form: str = "linear") -> int:
+    """Fit ``preset``'s calibration (of ``form``) on the first run's records and its error
+    model on all runs', and write them into the package; or, with ``check``, print what an
+    8-fold cross-validation over the foods gives instead (coverage, reliability per run)."""
     data = [json.loads(run.read_text()) for run in runs]
     fit_set = data[0]["meta"]["set"]
     for run, d in zip(runs, data, strict=True):
@@ -343,14 +345,17 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool) -> int:
         raise SystemExit(f"{runs[0]}: fit a calibration on an uncalibrated run without noise")
     records = [d["records"] for d in data]
     if check:
-        for run, held in zip(runs, cross_validate(records[0], records), strict=True):
+        for run, held in zip(runs, cross_validate(records[0], records, form=form), strict=True):
             del held["records"]
             print(table(held, f"{run.name}, 8-fold cross-validation"))
         return 0
     meta = data[0]["meta"]
     source = (f"{', '.join(run.name for run in runs)} ({meta['set']} set, seed {meta['seed']}, "
               f"{meta['n']} foods, preset {preset})")
-    cal = fit_models(records[0], records, source=source)
+    try:
+        cal = fit_models(records[0], records, source=source, form=form)
+    except EstimationError as exc:
+        raise SystemExit(f"validate_estimators: {exc}") from None
     table_ = json.loads(CALIBRATION_FILE.read_text()) if CALIBRATION_FILE.exists() else {}
     table_[calibration_key(fit_set, preset)] = cal.to_dict()
     _write_atomic(CALIBRATION_FILE, json.dumps(table_, indent=1) + "\n")
@@ -386,22 +391,25 @@ def _uncalibrated_foods(records: list[dict[str, Any]]
 
 
 def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
-               source: str = "", keep: set[int] | None = None) -> Calibration:
-    """The calibration fitted on ``cal_records`` (a run without noise) and its error model on
-    every run in ``runs`` (e.g. without and with noise), using only foods in ``keep``."""
+               source: str = "", keep: set[int] | None = None, form: str = "linear"
+               ) -> Calibration:
+    """The calibration of ``form`` fitted on ``cal_records`` (a run without noise) and its
+    error model on every run in ``runs`` (e.g. without and with noise), using only foods in
+    ``keep``."""
     def use(r: dict[str, Any]) -> bool:
         return "crash" not in r and (keep is None or r["food"]["index"] in keep)
 
     used = [r for r in cal_records if use(r)]
     cal = fit_calibration(_uncalibrated_foods(used), source=source,
-                          diagnostics=[r.get("diagnostics") or {} for r in used])
+                          diagnostics=[r.get("diagnostics") or {} for r in used], form=form)
     rows = [row for run in runs for i, row in error_rows([r for r in run if use(r)], cal)]
     em = fit_error_model(rows, source=source)
-    return Calibration(cal.coefficients, cal.n_foods, cal.source, em, cal.feature_names)
+    return dataclasses.replace(cal, error_model=em)
 
 
 def cross_validate(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
-                   folds: int = 8, seed: int = 0) -> list[dict[str, Any]]:
+                   folds: int = 8, seed: int = 0, form: str = "linear"
+                   ) -> list[dict[str, Any]]:
     """Held-out records of each run: the foods split into ``folds`` (seeded), each fold's
     records recomputed with the calibration and error model fitted on the other folds
     (:func:`held_out_record`)."""
@@ -411,7 +419,7 @@ def cross_validate(cal_records: list[dict[str, Any]], runs: list[list[dict[str, 
     out: list[list[dict[str, Any]]] = [[] for _ in runs]
     for k in range(folds):
         keep = {i for i, f in fold_of.items() if f != k}
-        model = fit_models(cal_records, runs, keep=keep)
+        model = fit_models(cal_records, runs, keep=keep, form=form)
         for j, run in enumerate(runs):
             out[j] += [held_out_record(r, model) for r in run
                        if "crash" not in r and fold_of.get(r["food"]["index"]) == k]
@@ -470,6 +478,9 @@ def main(argv: list[str] | None = None) -> int:
                    "run made with --no-calibration and no noise) and its error model on "
                    "those of every run named (e.g. that run and one with --noise 0.01), "
                    "write them to the package's calibration file and exit")
+    p.add_argument("--form", choices=FORMS, default="linear",
+                   help="with --fit-calibration: the calibration's form (default linear; "
+                   f"quadratic needs {QUADRATIC_MIN_FOODS} foods or more)")
     p.add_argument("--cross-validate", action="store_true",
                    help="with --fit-calibration: print the 8-fold cross-validated summary of "
                    "each run instead of writing anything")
@@ -478,7 +489,8 @@ def main(argv: list[str] | None = None) -> int:
                    "run's records (a tuning run) and exit")
     args = p.parse_args(argv)
     if args.fit_calibration is not None:
-        return _fit_calibration(args.fit_calibration, args.preset, args.cross_validate)
+        return _fit_calibration(args.fit_calibration, args.preset, args.cross_validate,
+                                args.form)
     if args.calibrate is not None:
         data = json.loads(args.calibrate.read_text())
         used = data["meta"].get("systematic_sd", dict.fromkeys(PARAM_NAMES, 0.0))

@@ -37,8 +37,8 @@ def test_reporting_foods_measure_as_committed(preset: str, index: int) -> None:
         assert_allclose(rec["estimate"][k], old["estimate"][k], rtol=1e-6, err_msg=k)
         assert_allclose(rec["interval"][k], old["interval"][k], rtol=1e-6, err_msg=k)
     assert rec["covered"]["g1"] and rec["covered"]["mu"]
-    # within the reporting set's largest misses (g1 16.6 %, mu 11.8 %)
-    assert abs(rec["error"]["g1"]) < 0.17 and abs(rec["error"]["mu"]) < 0.12
+    # within the reporting runs' largest misses (g1 17.3 % with `measure`, mu 12.2 %)
+    assert abs(rec["error"]["g1"]) < 0.174 and abs(rec["error"]["mu"]) < 0.123
 
 
 @pytest.mark.parametrize("preset", ["repeated", "measure"])
@@ -95,13 +95,14 @@ def test_default_probes_meet_the_reporting_sets_figures_on_its_first_foods() -> 
     """A reduced accuracy check over the food space in the default run: ``food-fetch
     estimate``'s probes (``repeated``) on the first 8 reporting foods (3 cubes, 3 spheres,
     2 ellipsoids, 0.02-4.8 MPa), recomputed: each g1 and tau1 within the reporting set's 95th
-    percentiles (6.66 and 11.32 %), their medians within 2 and 3 %, mu's median within 1 %,
-    and the g1 and tau1 intervals covering the truth on at least 7 of the 8."""
+    percentiles (4.52 and 7.14 %), their medians within 1.5 and 2 % (the set's: 1.00 and
+    1.39 %), mu's median within 1 %, and the g1 and tau1 intervals covering the truth on at
+    least 7 of the 8 (committed: g1 at most 1.5 %, tau1 2.9 %, all 8 covered)."""
     recs = [measure(food, "repeated", 0.0, 7919 * food.index + 1)
             for food in foods_of("reporting", 64)[:8]]
     err = {k: np.array([abs(r["error"][k]) for r in recs]) for k in ("g1", "tau1", "mu")}
-    assert err["g1"].max() <= 0.0666 and err["tau1"].max() <= 0.1132, err
-    assert np.median(err["g1"]) <= 0.02 and np.median(err["tau1"]) <= 0.03, err
+    assert err["g1"].max() <= 0.0452 and err["tau1"].max() <= 0.0714, err
+    assert np.median(err["g1"]) <= 0.015 and np.median(err["tau1"]) <= 0.02, err
     assert np.median(err["mu"]) <= 0.01, err["mu"]
     for k in ("g1", "tau1"):
         assert sum(bool(r["covered"][k]) for r in recs) >= 7, k
