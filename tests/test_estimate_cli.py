@@ -180,3 +180,18 @@ def test_estimate_help_states_its_own_defaults(capsys: pytest.CaptureFixture[str
     assert "to the relaxation probe only under --probe both" in out
     # simulate's defaults (relaxation hold 15 s, slip theta_d 0.045) and the unused option
     assert "15 for relaxation" not in out and "0.045" not in out and "--lift-speed" not in out
+
+
+def test_estimate_says_which_probes_and_calibration_it_applied(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The report names the probes preset and the calibration applied (its form and how
+    many reference foods it was fitted on), in print and in the JSON."""
+    from fetch_env.probes import PROBE_CALIBRATIONS
+
+    out = tmp_path / "e.json"
+    assert main(["estimate", "--probes", "measure", "--shape", "sphere", "--size", "0.012",
+                 "--young", "1e6", "--json", str(out)]) == 0
+    cal = PROBE_CALIBRATIONS["measure"]
+    said = f"{cal.form}, fitted on {cal.n_foods} reference foods"
+    assert f"probes: measure (1 relaxation clamp); calibration: {said}" in capsys.readouterr().out
+    assert json.loads(out.read_text())["details"]["settings"]["calibration"] == said

@@ -213,8 +213,9 @@ def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any
     )
 
     config = PROBE_PRESETS[preset]
+    calibration = PROBE_CALIBRATIONS.get(preset)
     res = run_probes(pieces, config, noise=args.noise, seed=args.seed,
-                     calibration=PROBE_CALIBRATIONS.get(preset))
+                     calibration=calibration)
     keep = {"both": NAMES, "relaxation": NAMES[:5], "slip": ("mu",)}[args.probe]
     estimate = {k: res.estimates[k] if k in keep else math.nan for k in NAMES}
     interval = {k: res.intervals.get(k, (math.nan, math.nan)) for k in keep}
@@ -230,8 +231,11 @@ def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any
         out.warnings.append("true K1, K2, B not computed: the elastic twin gave no moment")
         truth.update(K1=math.nan, K2=math.nan, B=math.nan)
     out.true.update({k: truth[k] for k in keep})
-    out.details["settings"] = {"probes": preset, "noise": args.noise, "seed": args.seed,
-                               "probe": args.probe, "config": dataclasses.asdict(config)}
+    out.details["settings"] = {
+        "probes": preset, "noise": args.noise, "seed": args.seed, "probe": args.probe,
+        "config": dataclasses.asdict(config),
+        "calibration": None if calibration is None else (
+            f"{calibration.form}, fitted on {calibration.n_foods} reference foods")}
     out.details["probes"] = {k: v for k, v in res.details.items() if k != "uncalibrated"}
     out.details["uncalibrated"] = res.details.get("uncalibrated")
     out.details["wall_time"] = res.wall_time
@@ -378,6 +382,12 @@ def print_report(r: ProbeEstimate) -> None:
         print(f"{k:<6}{_fmt(r.true[k]):>12} {_fmt(r.estimate[k]):>12} {err:>11}   {iv} "
               f"{units[k]}")
     print(f"R^2 clamp {_fmt(r.r2_clamp)}, hold {_fmt(r.r2_hold)}; reliable: {r.reliable}")
+    settings = r.details.get("settings", {})
+    if "calibration" in settings:
+        clamps = settings["config"]["relaxation_repeats"]
+        print(f"probes: {settings['probes']} ({clamps} relaxation "
+              f"clamp{'s' if clamps > 1 else ''}); calibration: "
+              f"{settings['calibration'] or 'none'}")
     if "truth_K" in r.details:
         d = r.details["truth_K"]
         print(
