@@ -56,6 +56,7 @@ __all__ = [
     "EXTRA_FEATURES",
     "FEATURES",
     "FORMS",
+    "QUADRATIC_MIN_FOODS",
     "TARGETS",
     "TARGET_EXTRA_FEATURES",
     "Calibration",
