@@ -15,7 +15,13 @@ from typing import Any
 import numpy as np
 
 from fetch_env import food_space
-from fetch_env.errors import InvalidParameterError, require, require_pieces, require_type
+from fetch_env.errors import (
+    InvalidParameterError,
+    require,
+    require_int,
+    require_pieces,
+    require_type,
+)
 from fetch_env.layouts import SHAPES, Piece, diced_mix, grid, single_block, single_row, two_rows
 from fetch_env.materials import PRESETS, STUDY_LEVELS, Material
 
@@ -272,10 +278,10 @@ def block_foods(n: int, seed: int = BLOCK_CALIBRATION_SEED) -> list[food_space.F
     Raises:
         InvalidParameterError: ``n`` not in [1, 4096] or a negative ``seed``.
     """
-    require(isinstance(n, int | np.integer) and not isinstance(n, bool) and 1 <= n <= 4096,
-            "n", n, "an integer in [1, 4096]")
-    require(isinstance(seed, int | np.integer) and not isinstance(seed, bool) and seed >= 0,
-            "seed", seed, "an integer >= 0")
+    require_int("n", n)
+    require(1 <= n <= 4096, "n", n, "in [1, 4096]")
+    require_int("seed", seed)
+    require(seed >= 0, "seed", seed, ">= 0")
     foods = []
     for i in range(n):
         (p,) = sample_scene("block", np.random.default_rng(seed + i))
