@@ -179,8 +179,9 @@ _COMMON_DOC = """
     (``fetch_env.probes.calibration_for``): on the 64 held-back Block scenes g1, tau1 and mu
     are within 1.1, 1.6 and 0.1 % (median; 95th percentile 3.4, 7.2 and 1.8 %), against
     the default probes' 1.3, 3.0 and 0.1 % (6.7, 15.9 and 6.2 %), for 1.37x the reset's
-    CPU time; ``probes="repeated"`` (seven clamps, the food space's quadratic calibration)
-    gives g1 0.8 / 2.5 % and tau1 1.3 / 5.7 %, for 6.1x (``docs/estimator_validation.md``).
+    CPU time; ``probes="repeated"`` (seven clamps, K1, K2 and B at the depth camera's
+    contact angle, the food space's quadratic calibration) gives g1 0.8 / 2.5 % and tau1
+    1.4 / 5.8 %, for 6.1x (``docs/estimator_validation.md``).
     ``probe_time_scale=1, probe_time_growth=0`` simulates the hold in real time (the unscaled
     reference); ``probe_hold=0.3`` still gives mu but g1 and tau1 only coarsely or not at
     all.

@@ -154,6 +154,12 @@ ENVELOPE_QUANTILE = 0.99
 # lower face, or smoothing the forces first did worse on the 95th percentile.
 SlipEnvelope = Literal["sum", "per_blade"]
 SLIP_ENVELOPES: tuple[SlipEnvelope, ...] = ("sum", "per_blade")
+
+# Where K1, K2 and B take the clamp's first-contact angle from (ProbeConfig.contact_angle):
+# the full fit's (the moment's rise) or the depth camera's view of the piece's rest surface
+# (first_contact_angle, the angle the clamp is set from).
+ContactAngle = Literal["fit", "camera"]
+CONTACT_ANGLES: tuple[ContactAngle, ...] = ("fit", "camera")
 # The slip probe is sampled at every physics step (run_probes; at 5 ms, 200 Hz gave
 # estimate_friction the 20 samples of a 0.15 s slide; at 100 Hz only the envelope could be
 # used).  Seeds 5000-5191, |mu error| median / 75th / 95th percentile / max, 5 ms step: 0.3 s
@@ -207,6 +213,15 @@ class ProbeConfig:
             nearby squeezes"), so a median over nearby squeezes shrinks the tails, at the
             cost of one probe per clamp.
         repeat_strain_step: the relative strain step between the repeated clamps [-].
+        contact_angle: the first-contact angle that turns the held moment into K1, K2 and B
+            through eq. 7 and times the clamp for g_1 and tau_1: "fit" (the full fit's,
+            from the moment's rise) or "camera" (:func:`first_contact_angle`, the piece's
+            rest surface as a depth camera sees it, from which the clamp angle is set; the
+            truth's angle, :func:`elastic_stiffness`).  The squeeze past first contact is a
+            few per cent of the piece's width, so a fitted angle a little off moves K1 + K2
+            by much more: on 156 tuning foods (``measure`` probes, uncalibrated) K1 + K2 was
+            within 6.9 / 45 % (median / 95th percentile) with the fit's angle and 1.2 / 14 %
+            with the camera's; g_1 2.4 / 11.6 % and 2.3 / 11.6 %, tau_1 unchanged.
     """
 
     strain: float = 0.06
@@ -226,6 +241,7 @@ class ProbeConfig:
     slip_envelope: SlipEnvelope = "sum"
     relaxation_repeats: int = 1
     repeat_strain_step: float = 0.02
+    contact_angle: ContactAngle = "fit"
 
     def __post_init__(self) -> None:
         for name, (lo, hi, lo_open) in _PROBE_LIMITS.items():
@@ -249,6 +265,8 @@ class ProbeConfig:
                 "in [0, 0.2], with every repeated clamp's strain above 0")
         require(isinstance(self.slip_envelope, str) and self.slip_envelope in SLIP_ENVELOPES,
                 "slip_envelope", self.slip_envelope, f"one of {SLIP_ENVELOPES}")
+        require(isinstance(self.contact_angle, str) and self.contact_angle in CONTACT_ANGLES,
+                "contact_angle", self.contact_angle, f"one of {CONTACT_ANGLES}")
 
 
 # ProbeConfig's settings: name -> (low, high, low end excluded)
@@ -432,7 +450,8 @@ def _noisy(x: np.ndarray, noise: float, rng: np.random.Generator | None) -> np.n
 def estimate_viscoelastic(result: SimResult, noise: float = 0.0,
                           rng: np.random.Generator | None = None,
                           diagnostics: dict[str, float] | None = None,
-                          drift_diagnostics: bool = True
+                          drift_diagnostics: bool = True,
+                          theta_contact: float | None = None
                           ) -> tuple[dict[str, float], list[str], dict[str, tuple[float, float]]]:
     """K1, K2, B, g1, tau1 from a relaxation run, with 95 % intervals: from the hold past
     ``HOLD_SETTLE``, with the contact angle of the full fit (else the three-step method),
@@ -441,12 +460,17 @@ def estimate_viscoelastic(result: SimResult, noise: float = 0.0,
     ``noise`` (with ``rng``) adds white noise of that share of the peak to the moment first.
     ``diagnostics``, where given, receives the fit's diagnostics (:func:`_from_the_hold`),
     with :func:`estimators.uncertainty.drift_diagnostics` where ``drift_diagnostics``.
+    ``theta_contact`` [rad], where given, is the first-contact angle the hold fit uses
+    instead of the full fit's (``ProbeConfig.contact_angle``, :func:`first_contact_angle`).
 
     Raises :class:`EstimationError` when neither method can use the trace.
     """
     _check_run_args(result, "relaxation", noise, rng)
+    if theta_contact is not None:
+        require_finite("theta_contact", theta_contact)
+        require(theta_contact >= 0.0, "theta_contact", theta_contact, ">= 0 rad")
     vals, warns, intervals, _ = _estimate_clamp(result, noise, rng, diagnostics,
-                                                drift_diagnostics)
+                                                drift_diagnostics, theta_contact)
     return vals, warns, intervals
 
 
@@ -474,11 +498,13 @@ def _clamp_samples(result: SimResult, noise: float, rng: np.random.Generator | N
 
 
 def _estimate_clamp(result: SimResult, noise: float, rng: np.random.Generator | None,
-                    diagnostics: dict[str, float] | None, drift_diagnostics: bool
+                    diagnostics: dict[str, float] | None, drift_diagnostics: bool,
+                    theta_contact: float | None = None
                     ) -> tuple[dict[str, float], list[str], dict[str, tuple[float, float]],
                                ViscoelasticEstimate]:
     """:func:`estimate_viscoelastic`, with the full (or three-step) fit whose contact angle
-    and clamp timing the hold fit used."""
+    (or ``theta_contact``, where given and below the hold angle) and clamp timing the hold
+    fit used."""
     t, theta_cmd, moment, geom, theta_d = _clamp_samples(result, noise, rng)
     args = (t, theta_cmd, moment, geom)
     kw = {"omega": result.action.omega, "theta_d": theta_d}
@@ -492,11 +518,22 @@ def _estimate_clamp(result: SimResult, noise: float, rng: np.random.Generator | 
             errors.append(f"{method.__name__}: {type(exc).__name__}: {exc}")
             continue
         if all(np.isfinite(v) and v > 0 for v in _visco_values(est).values()):
+            est = _with_contact_angle(est, theta_contact)
             vals, warns, intervals = _from_the_hold(est, t, moment, geom, diagnostics,
                                                     drift_diagnostics)
             return vals, [*errors, *warns], intervals, est
         errors.append(f"{method.__name__}: not identified ({'; '.join(est.warnings)})")
     raise EstimationError("; ".join(errors))
+
+
+def _with_contact_angle(est: ViscoelasticEstimate, theta_contact: float | None
+                        ) -> ViscoelasticEstimate:
+    """``est`` with its contact angle replaced by ``theta_contact`` where that is given and
+    leaves a squeeze (below the hold angle: a motor that stalled short of the camera's
+    contact angle touched the piece earlier, and the fit's angle says where)."""
+    if theta_contact is None or not theta_contact < est.theta_d:
+        return est
+    return dataclasses.replace(est, theta_1=float(theta_contact))
 
 
 def _from_the_hold(est: ViscoelasticEstimate, t: np.ndarray, moment: np.ndarray,
@@ -698,8 +735,10 @@ def _relaxation_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | No
         float(r.traces["max_log_strain"].max()) for r in runs)
     if keep_traces:
         out.traces["relaxation"] = runs[0].traces
+    theta_contact = (first_contact_angle(sim.scene_for("relaxation"))[0]
+                     if config.contact_angle == "camera" else None)
     fit_start, cpu_start = time.perf_counter(), time.process_time()
-    fits, failures = _fit_clamps(runs, noise, rng, drift_diagnostics)
+    fits, failures = _fit_clamps(runs, noise, rng, drift_diagnostics, theta_contact)
     out.details["wall_fits"] = out.details.get("wall_fits", 0.0) + time.perf_counter() - fit_start
     _add_cpu(out, "cpu_fits", cpu_start)
     if not fits:
@@ -716,7 +755,8 @@ def _relaxation_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | No
 
 
 def _fit_clamps(runs: list[SimResult], noise: float, rng: np.random.Generator,
-                drift_diagnostics: bool) -> tuple[list[_ClampFit], list[str]]:
+                drift_diagnostics: bool, theta_contact: float | None = None
+                ) -> tuple[list[_ClampFit], list[str]]:
     """Each clamp's estimates, and why the others gave none.  The first clamp that can be
     fitted gets the full fit, intervals and diagnostics (:func:`estimate_viscoelastic`);
     the others only the hold fit, with its contact angle and clamp start (the piece and
@@ -729,7 +769,8 @@ def _fit_clamps(runs: list[SimResult], noise: float, rng: np.random.Generator,
             if first is None:
                 diagnostics: dict[str, float] = {}
                 vals, warns, intervals, first = _estimate_clamp(res, noise, rng, diagnostics,
-                                                                drift_diagnostics)
+                                                                drift_diagnostics,
+                                                                theta_contact)
                 fits.append(_ClampFit(vals, warns, intervals, diagnostics))
             else:
                 vals, drift = _hold_values(res, first, noise, rng, drift_diagnostics)
@@ -992,9 +1033,10 @@ PROBE_PRESETS: dict[str, ProbeConfig] = {
     "measure": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade"),
     # measure's probes with seven relaxation clamps at squeezes 0.0564-0.0636, whose medians
     # shrink the tails of g1 and tau1 a single clamp leaves (tau1's 95th percentile 17 -> 10 %
-    # on the tuning foods, cross-validated; ProbeConfig.relaxation_repeats)
+    # on the tuning foods, cross-validated; ProbeConfig.relaxation_repeats), and K1, K2, B
+    # at the camera's contact angle (ProbeConfig.contact_angle)
     "repeated": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade",
-                            relaxation_repeats=7),
+                            relaxation_repeats=7, contact_angle="camera"),
 }
 
 # Calibrations of the presets' systematic errors, fitted on the validation harness's tuning

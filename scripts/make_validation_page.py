@@ -57,9 +57,11 @@ HEAD = """# Estimator validation over the food space
 What `fetch_env.probes.run_probes` (the probes every environment reset runs) and the
 estimators give with the settings of `food-fetch estimate`, the `repeated` preset (seven
 relaxation clamps held 20 s at squeezes 0.0564-0.0636 of the piece's width, the medians of
-their g1 and tau1, K1 + K2 from the first; a 0.3 s slide whose force-ratio envelope is read
-on each half-spoon, the lower of the two), and with the `measure` preset (the same with one
-clamp; the probes of FoodFetch-Row-v2 and of an environment's `probes="measure"`), on foods
+their g1 and tau1, K1 + K2 from the first at the first-contact angle a depth camera sees,
+`ProbeConfig.contact_angle`; a 0.3 s slide whose force-ratio envelope is read on each
+half-spoon, the lower of the two), and with the `measure` preset (one clamp, K1 + K2 at the
+full fit's contact angle; the probes of FoodFetch-Row-v2 and of an environment's
+`probes="measure"`), on foods
 drawn from the
 whole documented food space (`fetch_env.food_space`: cube, ellipsoid, sphere; 8-25 mm;
 E_0 0.0123-5 MPa; g1 0.1-0.8; tau1 0.5-10 s; mu 0.1-0.8; Poisson 0.25-0.45; density
@@ -237,11 +239,14 @@ def repeats_section(held: dict[str, list[tuple[dict[str, Any], dict[str, Any]]]]
             "their hold alone with its contact angle.  Each preset's calibration and error "
             "model were fitted on its own tuning runs (`measure`: linear, 256 foods; "
             "`repeated`: quadratic, 2048 foods, which alone takes its held-out g1 / tau1 "
-            "95th percentiles from 7.8 / 11.2 % to 6.2 / 8.7 %; `estimators.calibration."
+            "95th percentiles from 7.7 / 11.1 % to 6.3 / 8.6 %; `estimators.calibration."
             "design`):\n\n" + "\n".join(rows) + "\n\n"
             "The tails of g1 and tau1 shrink; the medians move within the folds' scatter. "
             "K1 + K2 is the first clamp's, as with one clamp (a piece's stiffness moves with "
-            "the squeeze).  The environments keep one clamp: seven would make a reset "
+            "the squeeze); `repeated` reads it at the depth camera's contact angle, "
+            "`measure` at the full fit's, hence their K1 columns "
+            "([the contact angle](validation/probes.md#the-contact-angle-of-k1-k2-and-b)).  "
+            "The environments keep one clamp: seven would make a reset "
             "several times dearer.  Also tried, on a handful of tuning foods, and not "
             "kept: a hold at a constant moment (a creep test, which a compliance in series "
             "does not bias), where soft pieces ran away in the V of the blades, and a hold "

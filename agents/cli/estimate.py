@@ -453,9 +453,11 @@ def add_options(p: argparse.ArgumentParser) -> None:
         default=None,
         help="repeated: probes made for any food (the clamp angle adapts to the piece, seven "
         "20 s time-scaled relaxation clamps at nearby squeezes and the medians of g1 and "
-        "tau1, a calibration fitted on reference foods, 95 %% intervals that include model "
-        "error; docs/estimator_validation.md); measure: the same with one clamp (the "
-        "probes of FoodFetch-Row-v2), a fifth of the time, twice the tails of g1 and tau1; "
+        "tau1, K1, K2, B at the depth camera's contact angle, a calibration fitted on "
+        "reference foods, 95 %% intervals that include model error; "
+        "docs/estimator_validation.md); measure: the same with one clamp and the fitted "
+        "contact angle (the probes of FoodFetch-Row-v2), a fifth of the time, twice the "
+        "tails of g1 and tau1 and more than twice K1's error; "
         "study: the study's fixed clamp (--theta-d, --omega, --hold, --method, "
         "--clamp-weight, --slide-time). Default: study where one of those is given, else "
         "repeated",
