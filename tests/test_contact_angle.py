@@ -14,6 +14,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from fetch_env.controller import SimResult
 from fetch_env.errors import InvalidParameterError
 from fetch_env.food_space import TUNING_SEED, sample_foods
 from fetch_env.probes import (
@@ -62,3 +63,49 @@ def test_the_camera_angle_gives_the_stiffness_the_fit_angle_misses() -> None:
     assert np.max(k_cam) <= 0.12
     assert np.median(k_fit) >= 0.05
     np.testing.assert_allclose(g_cam, g_fit, atol=0.005)
+
+
+def _relaxation_run() -> tuple[SimResult, float]:
+    """The env probes' relaxation clamp of the first tuning food, and its camera angle."""
+    from fetch_env.controller import FetchAction, FetchSimulator, TimeScale
+    from fetch_env.probes import HOLD_SETTLE, first_contact_angle, probe_angle
+
+    config = PROBE_PRESETS["env"]
+    sim = FetchSimulator((sample_foods(1, TUNING_SEED)[0].piece(),),
+                         impratio=config.relaxation_impratio)
+    theta_d = probe_angle(sim, config.strain, "relaxation")
+    run = sim.run("relaxation", FetchAction(theta_d=theta_d, omega=config.omega,
+                                            hold=config.hold, settle=config.settle),
+                  time_scale=TimeScale(config.hold_time_scale, realtime=HOLD_SETTLE,
+                                       growth=config.hold_time_growth))
+    return run, first_contact_angle(sim.scene_for("relaxation"))[0]
+
+
+def test_a_given_contact_angle_rescales_k1_by_eq_7_and_one_past_the_hold_is_ignored() -> None:
+    """K1 is the relaxed moment over eq. 7's ``L^2 (sin theta_d - sin theta_1) / cos
+    theta_d``, and the relaxed moment is the hold's, whatever the angle: so K1 at the camera's
+    angle is K1 at the fit's times the ratio of the two eq. 7 factors (to 1e-9).  An angle at
+    or past the hold angle leaves no squeeze (a motor that stalled short of the camera's
+    contact touched the piece earlier): the fit's angle is kept.  A bad angle is refused."""
+    from fetch_env.probes import estimate_viscoelastic
+
+    run, theta_c = _relaxation_run()
+    theta_d = float(run.traces["theta_cmd"][-1])
+    fit, _, _ = estimate_viscoelastic(run)
+    cam, _, _ = estimate_viscoelastic(run, theta_contact=theta_c)
+    past, _, _ = estimate_viscoelastic(run, theta_contact=theta_d + 0.001)
+    assert past == pytest.approx(fit, rel=1e-12)
+    theta_fit = _fitted_contact_angle(run)
+    ratio = (np.sin(theta_d) - np.sin(theta_fit)) / (np.sin(theta_d) - np.sin(theta_c))
+    np.testing.assert_allclose(cam["K1"], fit["K1"] * ratio, rtol=1e-9)
+    assert abs(theta_fit - theta_c) > 1e-5  # the two angles differ on this food
+    for bad in (-0.01, float("nan")):
+        with pytest.raises(InvalidParameterError, match="theta_contact"):
+            estimate_viscoelastic(run, theta_contact=bad)
+
+
+def _fitted_contact_angle(run: SimResult) -> float:
+    """The full fit's contact angle on ``run``, as the probes fit it."""
+    from fetch_env.probes import _estimate_clamp
+
+    return float(_estimate_clamp(run, 0.0, None, None, False)[3].theta_1)

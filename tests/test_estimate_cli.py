@@ -184,8 +184,9 @@ def test_estimate_help_states_its_own_defaults(capsys: pytest.CaptureFixture[str
 
 def test_estimate_says_which_probes_and_calibration_it_applied(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """The report names the probes preset and the calibration applied (its form and how
-    many reference foods it was fitted on), in print and in the JSON."""
+    """The report names the probes preset, where its contact angle comes from and the
+    calibration applied (its form and how many reference foods it was fitted on), in print
+    and in the JSON."""
     from fetch_env.probes import PROBE_CALIBRATIONS
 
     out = tmp_path / "e.json"
@@ -193,5 +194,7 @@ def test_estimate_says_which_probes_and_calibration_it_applied(
                  "--young", "1e6", "--json", str(out)]) == 0
     cal = PROBE_CALIBRATIONS["measure"]
     said = f"{cal.form}, fitted on {cal.n_foods} reference foods"
-    assert f"probes: measure (1 relaxation clamp); calibration: {said}" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    line = f"probes: measure (1 relaxation clamp, fit contact angle); calibration: {said}"
+    assert line in printed
     assert json.loads(out.read_text())["details"]["settings"]["calibration"] == said

@@ -384,10 +384,11 @@ def print_report(r: ProbeEstimate) -> None:
     print(f"R^2 clamp {_fmt(r.r2_clamp)}, hold {_fmt(r.r2_hold)}; reliable: {r.reliable}")
     settings = r.details.get("settings", {})
     if "calibration" in settings:
-        clamps = settings["config"]["relaxation_repeats"]
+        config = settings["config"]
+        clamps = config["relaxation_repeats"]
         print(f"probes: {settings['probes']} ({clamps} relaxation "
-              f"clamp{'s' if clamps > 1 else ''}); calibration: "
-              f"{settings['calibration'] or 'none'}")
+              f"clamp{'s' if clamps > 1 else ''}, {config['contact_angle']} contact angle); "
+              f"calibration: {settings['calibration'] or 'none'}")
     if "truth_K" in r.details:
         d = r.details["truth_K"]
         print(
