@@ -167,7 +167,10 @@ def parse_tuning_args(description: str, name: str, argv: list[str] | None
             or base["meta"].get("calibration") is not None or base["meta"]["preset"] != "measure":
         p.error(f"--base {args.base}: not an uncalibrated, noiseless tuning run of the "
                 f"measure preset on {args.n} foods")
-    if base["meta"].get("probe_config") != dataclasses.asdict(BASE):
+    # a setting added since the base run was made is missing from its meta: it ran with that
+    # setting's default, which is what ProbeConfig fills in
+    recorded = base["meta"].get("probe_config")
+    if not isinstance(recorded, dict) or ProbeConfig(**recorded) != BASE:
         p.error(f"--base {args.base}: made with other measure-probe settings than today's "
                 f"(meta.probe_config {base['meta'].get('probe_config')}); rerun it")
     args.work.mkdir(parents=True, exist_ok=True)

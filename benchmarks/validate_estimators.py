@@ -45,7 +45,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from estimators.calibration import (
-    ERROR_INPUTS,
+    ERROR_TARGETS,
     FORMS,
     QUADRATIC_MIN_FOODS,
     Calibration,
@@ -367,7 +367,7 @@ def error_rows(records: list[dict[str, Any]], calibration: Calibration
                ) -> list[tuple[int, ErrorRow]]:
     """``(food index, error-model row)`` of each finished record: the probe's own
     (uncalibrated) estimate and diagnostics, and the residual ``log(estimate / truth)`` of g1,
-    tau1 and mu after ``calibration``."""
+    tau1, mu and K1 + K2 after ``calibration``."""
     rows = []
     for r in records:
         if "crash" in r or not r.get("diagnostics"):
@@ -379,7 +379,9 @@ def error_rows(records: list[dict[str, Any]], calibration: Calibration
         except EstimationError:
             continue
         resid = {k: math.log(fixed[k] / r["truth"][k]) if fixed[k] > 0 else math.nan
-                 for k in ERROR_INPUTS}
+                 for k in ERROR_TARGETS}
+        k_el, true_k_el = fixed["K1"] + fixed["K2"], r["truth"]["K1"] + r["truth"]["K2"]
+        resid["K_el"] = math.log(k_el / true_k_el) if k_el > 0 else math.nan
         rows.append((int(f["index"]), (f["shape"], f["size"], own, r["diagnostics"], resid)))
     return rows
 

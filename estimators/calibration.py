@@ -53,6 +53,7 @@ from estimators.errors import EstimationError, instance, mapping
 
 __all__ = [
     "ERROR_INPUTS",
+    "ERROR_TARGETS",
     "EXTRA_FEATURES",
     "FEATURES",
     "FORMS",
@@ -414,7 +415,12 @@ ERROR_INPUTS: dict[str, tuple[str, ...]] = {
     "tau1": (*_FOOD_INPUTS, "log_sd_noise_tau1", "log_sd_model_tau1", *_HOLD_INPUTS),
     "mu": (*_FOOD_INPUTS, "log_sd_noise_mu", "log_mu_gap", "log_mu_lr", "mu_plateau",
            "mu_spread", "mu_grip"),
+    # the instantaneous stiffness K1 + K2, from which K1, K2 and B take their intervals
+    "K_el": (*_FOOD_INPUTS, *_HOLD_INPUTS),
 }
+# The targets every error model has; the others (K_el) it has where it was fitted on
+# residuals of them (a model saved without one still loads, and leaves those intervals be).
+ERROR_TARGETS: tuple[str, ...] = ("g1", "tau1", "mu")
 _INPUT_CLIP = 8.0  # standardized inputs beyond +-8 sds are held there (a wild diagnostic)
 
 
@@ -447,8 +453,9 @@ class ErrorModel:
     ``b`` comes from :func:`fit_error_model`.  ``multiplier`` makes ``+-multiplier * sd``
     (:meth:`half_width`) cover the truth on 95 % of the foods it was fitted on.
 
-    Attributes, by target (:data:`ERROR_INPUTS`' keys): centre, spread, coefficients
-    (intercept first), multiplier.  n_foods, source: for the record.
+    Attributes, by target (every one of :data:`ERROR_TARGETS` and any other key of
+    :data:`ERROR_INPUTS`): centre, spread, coefficients (intercept first), multiplier.
+    n_foods, source: for the record.
     """
 
     centre: Mapping[str, Sequence[float]]
@@ -461,10 +468,10 @@ class ErrorModel:
     def __post_init__(self) -> None:
         for name in ("centre", "spread", "coefficients", "multiplier"):
             mapping(f"error model {name}", getattr(self, name))
-        for t, names in ERROR_INPUTS.items():
-            n = len(names)
+        for t in self.targets:
+            n = len(ERROR_INPUTS.get(t, ()))
             mult = self.multiplier.get(t)
-            ok = (_finite_numbers(self.centre.get(t), n)
+            ok = (n > 0 and _finite_numbers(self.centre.get(t), n)
                   and _finite_numbers(self.spread.get(t), n)
                   and _finite_numbers(self.coefficients.get(t), n + 1)
                   and all(v > 0 for v in self.spread[t])
@@ -474,13 +481,23 @@ class ErrorModel:
                                       f"{n} positive spreads, {n + 1} coefficients and a "
                                       "positive multiplier")
 
+    @property
+    def targets(self) -> tuple[str, ...]:
+        """The parameters it gives intervals for: :data:`ERROR_TARGETS`, and K_el where it
+        was fitted for it."""
+        return (*ERROR_TARGETS, *(t for t in ERROR_INPUTS
+                                  if t not in ERROR_TARGETS and t in self.coefficients))
+
     def half_width(self, target: str, shape: str, size: float, estimate: Mapping[str, float],
                    diagnostics: Mapping[str, float]) -> float:
         """The 95 % half-width of ``log(estimate / truth)`` for one probed food.
 
         Raises:
-            EstimationError: as :func:`error_inputs`.
+            EstimationError: as :func:`error_inputs`, or a target the model has none for.
         """
+        if target not in self.targets:
+            raise EstimationError(f"the error model has no {target!r} part (it has "
+                                  f"{self.targets})")
         z = (error_inputs(target, shape, size, estimate, diagnostics)
              - np.asarray(self.centre[target])) / np.asarray(self.spread[target])
         b = np.asarray(self.coefficients[target])
@@ -488,7 +505,7 @@ class ErrorModel:
         return float(self.multiplier[target] * math.exp(min(log_sd, 5.0)))
 
     def to_dict(self) -> dict[str, object]:
-        return {"inputs": {t: list(v) for t, v in ERROR_INPUTS.items()},
+        return {"inputs": {t: list(ERROR_INPUTS[t]) for t in self.targets},
                 **{k: {t: (list(map(float, v)) if isinstance(v, Sequence) else float(v))
                        for t, v in getattr(self, k).items()}
                    for k in ("centre", "spread", "coefficients", "multiplier")},
@@ -498,9 +515,11 @@ class ErrorModel:
     def from_dict(cls, data: Mapping[str, object]) -> ErrorModel:
         """Read :meth:`to_dict`'s form (refusing one made for other inputs)."""
         inputs = data.get("inputs")
-        if not isinstance(inputs, Mapping) or {t: list(v) for t, v in inputs.items()} != {
-                t: list(v) for t, v in ERROR_INPUTS.items()}:
-            raise EstimationError(f"error model inputs {inputs!r} are not {ERROR_INPUTS}")
+        if not (isinstance(inputs, Mapping) and set(ERROR_TARGETS) <= set(inputs)
+                and all(t in ERROR_INPUTS and list(v) == list(ERROR_INPUTS[t])
+                        for t, v in inputs.items())):
+            raise EstimationError(f"error model inputs {inputs!r} are not those of "
+                                  f"{ERROR_TARGETS} (and optionally K_el) in {ERROR_INPUTS}")
         parts = {}
         for k in ("centre", "spread", "coefficients", "multiplier"):
             v = data.get(k)
@@ -521,8 +540,9 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0, coverage: floa
     Args:
         rows: ``(shape, size, estimate, diagnostics, residual)`` per probed food: the probe's
             own (uncalibrated) estimate and diagnostics, and ``residual[target]`` the
-            calibrated ``log(estimate / truth)``.  Rows missing an input or a residual are
-            left out of that target's fit.
+            calibrated ``log(estimate / truth)`` (of ``K1 + K2`` for ``"K_el"``).  Rows
+            missing an input or a residual are left out of that target's fit; a target
+            outside :data:`ERROR_TARGETS` is fitted only where some row has its residual.
         ridge: penalty on the squared coefficients (of the standardized inputs, not the
             intercept), in units of one food's log-likelihood.
         coverage: the share of the foods ``+-multiplier * sd`` is made to cover.  A little
@@ -545,6 +565,8 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0, coverage: floa
     n_used = 0
     for t, names in ERROR_INPUTS.items():
         X, r = _error_rows(rows, t)
+        if t not in ERROR_TARGETS and not any(t in row[4] for row in rows):
+            continue
         if len(r) < 3 * len(names):
             raise EstimationError(f"error model for {t!r} needs at least {3 * len(names)} foods "
                                   f"with its inputs, got {len(r)}")

@@ -81,7 +81,7 @@ from estimators import (
     estimate_full_fit,
     estimate_three_step,
 )
-from estimators.calibration import ERROR_INPUTS, Calibration
+from estimators.calibration import ERROR_TARGETS, Calibration
 from estimators.uncertainty import DRIFT_DIAGNOSTICS, hold_with_intervals, log_interval
 from estimators.uncertainty import drift_diagnostics as uncertainty_drift
 from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator, SimResult, TimeScale
@@ -220,7 +220,7 @@ class ProbeConfig:
             truth's angle, :func:`elastic_stiffness`).  The squeeze past first contact is a
             few per cent of the piece's width, so a fitted angle a little off moves K1 + K2
             by much more: on 156 tuning foods (``measure`` probes, uncalibrated) K1 + K2 was
-            within 6.9 / 45 % (median / 95th percentile) with the fit's angle and 1.2 / 14 %
+            within 6.6 / 39 % (median / 95th percentile) with the fit's angle and 1.2 / 9.2 %
             with the camera's; g_1 2.4 / 11.6 % and 2.3 / 11.6 %, tau_1 unchanged.
     """
 
@@ -354,10 +354,11 @@ def elastic_stiffness(piece: Piece, config: ProbeConfig,
     ``g1 = 0``) clamped by the same probe to the same angle, with the first-contact angle
     ``theta_c`` the faces reach the piece's rest surface at (:func:`first_contact_angle`):
     ``K_el = M_el cos(theta_d) / (L^2 (sin theta_d - sin theta_c))``, ``M_el`` the twin's held
-    moment.  Then ``K2 = g1 K_el``, ``K1 = (1 - g1) K_el`` and ``B = tau1 K2``.  Unlike a
-    nominal ``2 E A / l`` this is what an exact estimator must return for this piece, shape
-    and clamp (Poisson confinement, contact curvature and the contact's own compliance
-    included); g1, tau1 and mu are the material's.
+    moment and ``theta_d`` the angle it was held at (the probe's, or where a stiff piece
+    stalled the motor short of it).  Then ``K2 = g1 K_el``, ``K1 = (1 - g1) K_el`` and
+    ``B = tau1 K2``.  Unlike a nominal ``2 E A / l`` this is what an exact estimator must
+    return for this piece, shape and clamp (Poisson confinement, contact curvature and the
+    contact's own compliance included); g1, tau1 and mu are the material's.
 
     Returns:
         ``{"K_el", "theta_c", "theta_d", "M_el"}`` (N/m, rad, rad, N m).
@@ -367,12 +368,15 @@ def elastic_stiffness(piece: Piece, config: ProbeConfig,
                                material=dataclasses.replace(piece.material, g1=0.0))
     sim = FetchSimulator((twin,), geometry, impratio=config.relaxation_impratio,
                          timestep=config.relaxation_timestep)
-    theta_d = probe_angle(sim, config.strain, "relaxation")
     theta_c = first_contact_angle(sim.scene_for("relaxation"))[0]
     hold = 0.5
-    res = sim.run("relaxation", FetchAction(theta_d=theta_d, omega=config.omega, hold=hold,
+    command = probe_angle(sim, config.strain, "relaxation")
+    res = sim.run("relaxation", FetchAction(theta_d=command, omega=config.omega, hold=hold,
                                             settle=config.settle))
     tr = res.traces
+    # The angle the twin was held at: the probe's, or where a stiff piece stalled the motor
+    # short of it (the command it stalled on, as the estimators take theta_d).
+    theta_d = float(tr["theta_cmd"][-1])
     late = tr["t"] > tr["t"][-1] - 0.5 * hold
     m_el = float(np.mean(_mean_moment(tr)[late]))
     lever = float(res.geometry["L"])
@@ -893,7 +897,7 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     except EstimationError as exc:
         out.warnings.append(f"not calibrated: {exc}")
         if calibration.error_model is not None:  # its intervals are for calibrated values
-            for k in ERROR_INPUTS:
+            for k in _modelled_intervals(calibration.error_model.targets):
                 out.intervals[k] = (math.nan, math.nan)
                 out.warnings.append(f"no {k} interval: the estimates are not calibrated")
         return
@@ -909,14 +913,36 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     if model is None:
         return
     widths = {}
-    for k in ERROR_INPUTS:
+    for k in model.targets:
         try:
             widths[k] = model.half_width(k, shape, size, own, out.details.get("diagnostics", {}))
         except EstimationError as exc:
             widths[k] = math.nan
             out.warnings.append(f"no {k} interval: {exc}")
-        out.intervals[k] = _log_width_interval(est[k], widths[k])
+    for k, width in _interval_half_widths(widths, est["g1"]).items():
+        out.intervals[k] = _log_width_interval(est[k], width)
     out.details["error_half_width"] = widths
+
+
+VISCO_SPRINGS = ("K1", "K2", "B")
+
+
+def _modelled_intervals(targets: tuple[str, ...]) -> tuple[str, ...]:
+    """The parameters whose intervals an error model with ``targets`` gives."""
+    return (*ERROR_TARGETS, *(VISCO_SPRINGS if "K_el" in targets else ()))
+
+
+def _interval_half_widths(widths: dict[str, float], g1: float) -> dict[str, float]:
+    """Log half-widths by parameter from an error model's (by target): g1, tau1 and mu its
+    own; where it has K_el, K1 = (1 - g1) K_el, K2 = g1 K_el and B = tau1 K2 add their
+    parts in quadrature (log(1 - g1) moves g1 / (1 - g1) times as much as log g1)."""
+    out = {k: widths[k] for k in ERROR_TARGETS}
+    if "K_el" in widths:
+        w_k, w_g, w_t = widths["K_el"], widths["g1"], widths["tau1"]
+        out["K1"] = math.hypot(w_k, g1 / (1.0 - g1) * w_g)
+        out["K2"] = math.hypot(w_k, w_g)
+        out["B"] = math.sqrt(w_k**2 + w_g**2 + w_t**2)
+    return out
 
 
 def _log_width_interval(value: float, half_width: float) -> tuple[float, float]:

@@ -97,10 +97,14 @@ reporting runs say how well they hold on other foods:
   narrowest such food's half-width moves with how the folds fall: 2.2-5.0 % without noise).
 
 Intervals of g1, tau1 and mu: `exp(+-half_width)` around the calibrated estimate, the
-half-width from the error model; those of K1, K2, B: the hold fit's covariance inflated by
-the residuals' autocorrelation, the estimates' change when the hold window moves, and a
-systematic part (`fetch_env.probes.PROBE_SYSTEMATIC_SD`) in quadrature on the log scale
-(`estimators.uncertainty`).  `reliable` is True only where the intervals of g1, tau1 and mu
+half-width from the error model.  Those of K1, K2, B: with the `repeated` preset, whose error
+model also predicts the error of K1 + K2, its half-width and g1's (and for B tau1's) in
+quadrature on the log scale (K1 = (1 - g1) K_el, K2 = g1 K_el, B = tau1 K2); with the
+`measure` preset, the hold fit's covariance inflated by the residuals' autocorrelation,
+the estimates' change when the hold window moves, and a systematic part
+(`fetch_env.probes.PROBE_SYSTEMATIC_SD`) in quadrature on the log scale
+(`estimators.uncertainty`), which covers K1 on nearly every food with intervals of about
++-30 %.  `reliable` is True only where the intervals of g1, tau1 and mu
 are each within +-2.5 %: the per-food error left after the calibration is predicted only
 roughly, so the flag that never calls a 5 % miss reliable is rarely True, also on foods the
 probe measured within 2 %.

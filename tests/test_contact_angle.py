@@ -109,3 +109,24 @@ def _fitted_contact_angle(run: SimResult) -> float:
     from fetch_env.probes import _estimate_clamp
 
     return float(_estimate_clamp(run, 0.0, None, None, False)[3].theta_1)
+
+
+def test_a_stalled_twin_defines_the_stiffness_at_the_angle_it_was_held_at() -> None:
+    """A 23 mm, 4.2 MPa cube (tuning food 923) stalls the 2 N m motor at about 0.0105 rad,
+    short of the probe's 0.023 rad.  The truth's eq. 7 must use the angle the elastic twin
+    was held at: at the commanded angle it would be 2.66 times too soft.  With it, the
+    probe's uncalibrated K1 + K2 (one clamp, the camera's angle) is within 15 % (measured
+    +0.7 %), where the commanded angle made it +167 %."""
+    food = sample_foods(924, TUNING_SEED)[923]
+    piece = food.piece()
+    config = dataclasses.replace(PROBE_PRESETS["measure"], contact_angle="camera")
+    truth = elastic_stiffness(piece, config)
+    from fetch_env.controller import FetchSimulator
+    from fetch_env.probes import probe_angle
+
+    sim = FetchSimulator((piece,), impratio=config.relaxation_impratio)
+    command = probe_angle(sim, config.strain, "relaxation")
+    assert truth["theta_d"] < 0.6 * command  # stalled well short of the command
+    out = run_probes((piece,), config)
+    k_el = out.estimates["K1"] + out.estimates["K2"]
+    assert abs(k_el / truth["K_el"] - 1) < 0.15, (k_el, truth)

@@ -44,16 +44,18 @@ def _diagnostics(rng: np.random.Generator) -> dict[str, float]:
 
 def _synthetic_rows(n: int, seed: int) -> list[tuple]:
     """Foods whose calibrated log error is Laplace with a scale set by one of the target's
-    own diagnostics (g1's and tau1's window-shift sd, mu's half-spoon gap) and the shape:
-    ~0.2 % to ~10 %."""
+    own diagnostics (g1's and tau1's window-shift sd, mu's half-spoon gap, K_el's residual
+    rms) and the shape: ~0.2 % to ~10 %."""
     rng = np.random.default_rng(seed)
     own = {"g1": "sd_model_g1", "tau1": "sd_model_tau1", "mu": "mu_lr"}
     rows = []
     for _ in range(n):
         shape = str(rng.choice(["cube", "ellipsoid", "sphere"]))
         diag = _diagnostics(rng)
-        resid = {k: float(rng.laplace(0.0, 0.01 * math.exp(
-            0.6 * math.log(diag[own[k]] / 0.02) + 0.5 * (shape == "cube")))) for k in own}
+        log_scale = {k: 0.6 * math.log(diag[v] / 0.02) for k, v in own.items()}
+        log_scale["K_el"] = 0.6 * (diag["log_rms"] + 4.0)
+        resid = {k: float(rng.laplace(0.0, 0.01 * math.exp(v + 0.5 * (shape == "cube"))))
+                 for k, v in log_scale.items()}
         rows.append((shape, 0.015, ESTIMATE, diag, resid))
     return rows
 
@@ -64,6 +66,7 @@ def test_intervals_cover_a_food_dependent_model_error_on_new_foods() -> None:
     wider on the better half of the foods."""
     model = fit_error_model(_synthetic_rows(400, 1))
     test = _synthetic_rows(2000, 2)
+    assert model.targets == tuple(ERROR_INPUTS)  # K_el too: the rows have its residual
     for target in ERROR_INPUTS:
         hw = np.array([model.half_width(target, *row[:4]) for row in test])
         err = np.array([abs(row[4][target]) for row in test])
@@ -174,3 +177,41 @@ def test_the_shipped_error_models_are_fitted_on_tuning_foods() -> None:
         model = PROBE_CALIBRATIONS[preset].error_model
         assert model is not None and "tuning set, seed 1000" in model.source
         assert model.n_foods >= 200
+
+
+def test_spring_intervals_combine_k_el_and_g1_widths_where_the_model_has_k_el() -> None:
+    """With a K_el part, K1 = (1 - g1) K_el, K2 = g1 K_el and B = tau1 K2 take the log
+    half-widths sqrt(w_K^2 + (g1 / (1 - g1) w_g1)^2), sqrt(w_K^2 + w_g1^2) and
+    sqrt(w_K^2 + w_g1^2 + w_tau1^2); a model without one (as saved before it had one) leaves
+    the springs' intervals as the hold fit gave them."""
+    model = fit_error_model(_synthetic_rows(300, 6))
+    row = _synthetic_rows(1, 7)[0]
+
+    def applied(em: ErrorModel) -> ProbeOutcome:
+        cal = Calibration({t: [0.0] * 8 for t in ("K_el", "g1", "tau1")}, error_model=em)
+        out = ProbeOutcome(estimates=dict(ESTIMATE), visco_valid=True, friction_valid=True,
+                           wall_time=0.0, piece_index=0, details={"diagnostics": dict(row[3])},
+                           intervals={k: (v * 0.9, v * 1.1) for k, v in ESTIMATE.items()})
+        apply_calibration("cube", 0.015, cal, out)
+        return out
+
+    out = applied(model)
+    w = out.details["error_half_width"]
+    g1 = ESTIMATE["g1"]
+    expected = {"K1": math.hypot(w["K_el"], g1 / (1 - g1) * w["g1"]),
+                "K2": math.hypot(w["K_el"], w["g1"]),
+                "B": math.sqrt(w["K_el"] ** 2 + w["g1"] ** 2 + w["tau1"] ** 2)}
+    for k, width in expected.items():
+        lo, hi = out.intervals[k]
+        assert_allclose([lo, hi], [ESTIMATE[k] * math.exp(-width), ESTIMATE[k] * math.exp(width)],
+                        rtol=1e-12)
+    data = model.to_dict()
+    for part in ("inputs", "centre", "spread", "coefficients", "multiplier"):
+        del data[part]["K_el"]
+    old = ErrorModel.from_dict(data)
+    assert old.targets == ("g1", "tau1", "mu")
+    kept = applied(old)
+    for k in ("K1", "K2", "B"):
+        assert_allclose(kept.intervals[k], (ESTIMATE[k] * 0.9, ESTIMATE[k] * 1.1), rtol=1e-12)
+    with pytest.raises(EstimationError, match="no 'K_el' part"):
+        old.half_width("K_el", *row[:4])
