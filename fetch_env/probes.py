@@ -522,22 +522,27 @@ def _estimate_clamp(result: SimResult, noise: float, rng: np.random.Generator | 
             errors.append(f"{method.__name__}: {type(exc).__name__}: {exc}")
             continue
         if all(np.isfinite(v) and v > 0 for v in _visco_values(est).values()):
-            est = _with_contact_angle(est, theta_contact)
+            est, angle_warnings = _with_contact_angle(est, theta_contact)
             vals, warns, intervals = _from_the_hold(est, t, moment, geom, diagnostics,
                                                     drift_diagnostics)
-            return vals, [*errors, *warns], intervals, est
+            return vals, [*errors, *angle_warnings, *warns], intervals, est
         errors.append(f"{method.__name__}: not identified ({'; '.join(est.warnings)})")
     raise EstimationError("; ".join(errors))
 
 
 def _with_contact_angle(est: ViscoelasticEstimate, theta_contact: float | None
-                        ) -> ViscoelasticEstimate:
+                        ) -> tuple[ViscoelasticEstimate, list[str]]:
     """``est`` with its contact angle replaced by ``theta_contact`` where that is given and
     leaves a squeeze (below the hold angle: a motor that stalled short of the camera's
-    contact angle touched the piece earlier, and the fit's angle says where)."""
-    if theta_contact is None or not theta_contact < est.theta_d:
-        return est
-    return dataclasses.replace(est, theta_1=float(theta_contact))
+    contact angle touched the piece earlier, and the fit's angle says where; a warning
+    says so)."""
+    if theta_contact is None:
+        return est, []
+    if not theta_contact < est.theta_d:
+        return est, [f"the camera's contact angle {theta_contact:.6g} rad is not below the "
+                     f"hold angle {est.theta_d:.6g} rad: K1, K2 and B are at the fit's "
+                     f"contact angle {est.theta_1:.6g} rad"]
+    return dataclasses.replace(est, theta_1=float(theta_contact)), []
 
 
 def _from_the_hold(est: ViscoelasticEstimate, t: np.ndarray, moment: np.ndarray,

@@ -86,15 +86,17 @@ def test_a_given_contact_angle_rescales_k1_by_eq_7_and_one_past_the_hold_is_igno
     theta_d``, and the relaxed moment is the hold's, whatever the angle: so K1 at the camera's
     angle is K1 at the fit's times the ratio of the two eq. 7 factors (to 1e-9).  An angle at
     or past the hold angle leaves no squeeze (a motor that stalled short of the camera's
-    contact touched the piece earlier): the fit's angle is kept.  A bad angle is refused."""
+    contact touched the piece earlier): the fit's angle is kept, and a warning says so.  A bad
+    angle is refused."""
     from fetch_env.probes import estimate_viscoelastic
 
     run, theta_c = _relaxation_run()
     theta_d = float(run.traces["theta_cmd"][-1])
     fit, _, _ = estimate_viscoelastic(run)
     cam, _, _ = estimate_viscoelastic(run, theta_contact=theta_c)
-    past, _, _ = estimate_viscoelastic(run, theta_contact=theta_d + 0.001)
+    past, said, _ = estimate_viscoelastic(run, theta_contact=theta_d + 0.001)
     assert past == pytest.approx(fit, rel=1e-12)
+    assert any("is not below the hold angle" in w for w in said), said
     theta_fit = _fitted_contact_angle(run)
     ratio = (np.sin(theta_d) - np.sin(theta_fit)) / (np.sin(theta_d) - np.sin(theta_c))
     np.testing.assert_allclose(cam["K1"], fit["K1"] * ratio, rtol=1e-9)
