@@ -130,8 +130,9 @@ RELIABLE_HALF_WIDTH = 0.025
 # and with 1 % noise, the larger of the two, rounded up: g1 and tau1 need little beyond their
 # own window-shift and noise parts, mu 2 % with noise (its envelope then reads noise peaks),
 # the springs a tenth.  Where a calibration has an error model (the shipped ones do), it
-# sets the intervals of g1, tau1 and mu instead (apply_calibration), and these sds hold for
-# K1, K2, B and for uncalibrated probes.
+# sets the intervals of g1, tau1 and mu instead (apply_calibration), and, where it has a
+# K1 + K2 part (the "repeated" one), those of K1, K2 and B; these sds hold for the rest and
+# for uncalibrated probes.
 PROBE_SYSTEMATIC_SD: dict[str, float] = {"K1": 0.14, "K2": 0.10, "B": 0.11, "g1": 0.010,
                                          "tau1": 0.004, "mu": 0.02}
 # slip probe: quantile of |F_t| / F_n taken as mu where the plateau is lower.  Coulomb bounds
@@ -155,11 +156,6 @@ ENVELOPE_QUANTILE = 0.99
 SlipEnvelope = Literal["sum", "per_blade"]
 SLIP_ENVELOPES: tuple[SlipEnvelope, ...] = ("sum", "per_blade")
 
-# Where K1, K2 and B take the clamp's first-contact angle from (ProbeConfig.contact_angle):
-# the full fit's (the moment's rise) or the depth camera's view of the piece's rest surface
-# (first_contact_angle, the angle the clamp is set from).
-ContactAngle = Literal["fit", "camera"]
-CONTACT_ANGLES: tuple[ContactAngle, ...] = ("fit", "camera")
 # The slip probe is sampled at every physics step (run_probes; at 5 ms, 200 Hz gave
 # estimate_friction the 20 samples of a 0.15 s slide; at 100 Hz only the envelope could be
 # used).  Seeds 5000-5191, |mu error| median / 75th / 95th percentile / max, 5 ms step: 0.3 s
@@ -167,6 +163,11 @@ CONTACT_ANGLES: tuple[ContactAngle, ...] = ("fit", "camera")
 # 100 Hz 0.2 / 1.3 / 7.2 / 34 %; 0.15 s, 200 Hz 0.1 / 1.0 / 4.9 / 24 %; at the
 # 10 ms step, every step (100 Hz): 0.1 / 1.2 / 4.6 / 13 %.
 
+# Where K1, K2 and B take the clamp's first-contact angle from (ProbeConfig.contact_angle):
+# the full fit's (the moment's rise) or the depth camera's view of the piece's rest surface
+# (first_contact_angle, the angle the clamp is set from).
+ContactAngle = Literal["fit", "camera"]
+CONTACT_ANGLES: tuple[ContactAngle, ...] = ("fit", "camera")
 
 MAX_RELAXATION_REPEATS = 15
 
