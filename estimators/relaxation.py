@@ -19,6 +19,7 @@ Two estimators return the same :class:`ViscoelasticEstimate`:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -806,6 +807,7 @@ def estimate_full_fit(
     theta_d: float | None = None,
     fit_theta_1: bool = True,
     clamp_weight: float = 1.0,
+    theta_1: float | None = None,
 ) -> ViscoelasticEstimate:
     """Fit the exact clamp+hold model to the whole trace at once (see module docstring).
 
@@ -823,13 +825,21 @@ def estimate_full_fit(
         clamp_weight: weight of the clamp-phase residuals relative to the hold's (default 1,
             ordinary least squares). Below 1 it lets the hold, where eq. 6 is exact for any SLS,
             dominate when the clamp rise is not the SLS's (e.g. a contact area that grows).
+        theta_1: a known first-contact angle, rad (e.g. where a depth camera sees the faces
+            reach the piece's surface), used instead of the one detected on the trace and
+            not fitted.  K1, K2 and B scale with ``1 / (sin theta_d - sin theta_1)`` and a
+            gentle clamp squeezes a few per cent of the piece's width, so a known angle
+            gives them where a soft or rocking first touch misleads the detection.
 
     Raises:
-        EstimationError: bad traces, no hold, no contact, a non-finite model or a solver failure.
+        EstimationError: bad traces, no hold, no contact, a non-finite model or a solver
+            failure, or a given ``theta_1`` outside ``[0, theta_d)``.
     """
     tt, th, m = _validate(t, theta, M, geometry)
     _check_full_fit_options(fit_theta_1, clamp_weight)
-    phases = _clamp_phases(tt, th, m, omega, theta_d)
+    theta_1 = optional_real("theta_1", theta_1)
+    phases = _with_known_contact(_clamp_phases(tt, th, m, omega, theta_d), theta_1)
+    fit_theta_1 = fit_theta_1 and theta_1 is None
     kin, contact, hf = phases
     if not hf.relaxes:
         return _never_relaxes_estimate(tt, m, geometry, kin, contact.theta_1, hf, "full_fit")
@@ -873,6 +883,18 @@ def estimate_full_fit(
         warnings=warns,
         method="full_fit",
     )
+
+
+def _with_known_contact(phases: _ClampPhases, theta_1: float | None) -> _ClampPhases:
+    """``phases`` with the first contact at a known angle ``theta_1`` (where given)."""
+    if theta_1 is None:
+        return phases
+    kin = phases.kin
+    if not (math.isfinite(theta_1) and 0.0 <= theta_1 < kin.theta_d):
+        raise EstimationError(f"theta_1={theta_1!r} rad must be in [0, theta_d={kin.theta_d!r})")
+    contact = dataclasses.replace(phases.contact, theta_1=theta_1,
+                                  t_1=kin.t_start + theta_1 / kin.omega)
+    return phases._replace(contact=contact)
 
 
 def _check_full_fit_options(fit_theta_1: object, clamp_weight: float) -> None:

@@ -124,6 +124,29 @@ def test_relaxation_round_trip_json_and_csv(
         assert r["reliable"] == direct.reliable
 
 
+def test_a_known_contact_angle_is_the_full_fits(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--contact-angle`` (a depth camera's) is the full fit's first-contact angle, not
+    fitted: on an exact SLS trace touched at 0.005 rad the estimate is the truth (K1 4000,
+    K2 2000, B 6000 N/m, N s/m) to 1e-6 and exactly ``estimate_full_fit(..., theta_1=)``'s;
+    the JSON's settings say what was given."""
+    cols = synthetic_relaxation()
+    path = write_csv(tmp_path / "known.csv", cols, {"L": 0.04, "theta_0": 0.0})
+    r = estimate_json(path, capsys, "--contact-angle", "0.005")
+    t, theta = cols["t"], cols["theta"]
+    direct = estimate_full_fit(t, theta, cols["moment_left"], ClampGeometry(L=0.04, theta_0=0.0),
+                               clamp_weight=SIM_CLAMP_WEIGHT, theta_1=0.005)
+    assert direct.theta_1 == 0.005 and r["details"]["relaxation"]["theta_1"] == 0.005
+    for k, true in (("K1", 4000.0), ("K2", 2000.0), ("B", 6000.0)):
+        assert_allclose(r["estimate"][k], getattr(direct, k), rtol=1e-9, err_msg=k)
+        assert_allclose(r["estimate"][k], true, rtol=1e-6, err_msg=k)
+    assert r["details"]["settings"]["contact_angle"] == 0.005
+    with pytest.raises(EstimationError, match=r"theta_1=0.03 rad must be in \[0, theta_d"):
+        estimate_full_fit(t, theta, cols["moment_left"], ClampGeometry(L=0.04, theta_0=0.0),
+                          theta_1=0.03)
+
+
 def test_slip_round_trip_json_and_csv(
     sim_docs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -305,6 +328,12 @@ def test_bad_file_is_one_line_exit_2(
     (["--traces", "{good}", "--L", "abc"], "--L: not a number"),
     (["--L", "0.04"], "--L need --traces FILE"),
     (["--theta-0", "0", "--L", "0.04"], "--L and --theta-0 need --traces FILE"),
+    (["--contact-angle", "0.005"], "--contact-angle need --traces FILE"),
+    (["--traces", "{good}", "--contact-angle", "0.005", "--method", "three-step"],
+     "--contact-angle is for the full fit"),
+    (["--traces", "{good}", "--contact-angle", "0.03"],
+     "--contact-angle 0.03 rad must be in [0, 0.024) rad"),
+    (["--traces", "{good}", "--contact-angle", "-0.001"], "--contact-angle -0.001 rad must be"),
 ], ids=lambda v: v if isinstance(v, str) else " ".join(v))
 def test_bad_option_is_one_line_exit_2(
     args: list[str], fragment: str, tmp_path: Path, capsys: pytest.CaptureFixture[str],

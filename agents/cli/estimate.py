@@ -402,7 +402,8 @@ def print_report(r: ProbeEstimate) -> None:
 
 
 def cmd_estimate(args: argparse.Namespace) -> int:
-    if any(getattr(args, k, None) is not None for k in ("traces", "L", "theta_0")):
+    if any(getattr(args, k, None) is not None
+           for k in ("traces", "L", "theta_0", "contact_angle")):
         from agents.cli.traces import cmd_estimate_traces  # recorded, not simulated
 
         return cmd_estimate_traces(args)

@@ -37,7 +37,8 @@ from estimators import (
 from fetch_env.study_probes import SIM_CLAMP_WEIGHT
 
 # Options of ``estimate`` that keep their meaning with --traces (argparse dests).
-TRACE_OPTIONS = frozenset({"traces", "L", "theta_0", "probe", "method", "json"})
+TRACE_OPTIONS = frozenset({"traces", "L", "theta_0", "contact_angle", "probe", "method",
+                           "json"})
 PROG = "food-fetch estimate"
 
 
@@ -57,8 +58,9 @@ class _NoteGiven(argparse._StoreAction):
 
 
 def add_traces_options(p: argparse.ArgumentParser) -> None:
-    """Add ``--traces``, ``--L``, ``--theta-0`` to ``estimate``'s parser ``p`` and mark every
-    option already there that only a simulation uses (call it after those are added)."""
+    """Add ``--traces``, ``--L``, ``--theta-0``, ``--contact-angle`` to ``estimate``'s parser
+    ``p`` and mark every option already there that only a simulation uses (call it after
+    those are added)."""
     for action in p._actions:
         if type(action) is argparse._StoreAction and action.dest not in TRACE_OPTIONS:
             action.__class__ = _NoteGiven
@@ -76,6 +78,10 @@ def add_traces_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--theta-0", type=finite(), default=None, metavar="RAD",
                    help="hinge angle theta_0 [rad] at which the contact face is vertical "
                    "(default: the file's)")
+    g.add_argument("--contact-angle", type=finite(), default=None, metavar="RAD",
+                   help="hinge angle [rad] at which the faces first touch the piece, where "
+                   "known (e.g. from a depth camera): the full fit uses it instead of the "
+                   "one it detects (K1, K2, B scale with 1 / (sin theta_d - sin it))")
 
 
 @dataclass
@@ -106,18 +112,24 @@ def probes_to_run(traces: RecordedTraces, probe: str) -> tuple[str, ...]:
 
 
 def estimate_recorded(
-    traces: RecordedTraces, *, method: str = "full", probe: str = "both"
+    traces: RecordedTraces, *, method: str = "full", probe: str = "both",
+    contact_angle: float | None = None
 ) -> RecordedEstimates:
     """Run the estimators on recorded traces as the simulated probes run them (the full fit
     with the simulator's clamp weight, or the three-step method; the friction estimator): the
     one place that picks them.  An estimator's failure is kept in ``failures``, not raised.
+    ``contact_angle`` [rad], where known, is the full fit's first-contact angle.
 
     Raises:
-        ValueError: an unknown method or probe name.
+        ValueError: an unknown method or probe name, or a contact angle with the three-step
+            method (which reads it off the trace).
         TraceFileError: ``probe`` names a probe the file has no data for.
     """
     if method not in ("full", "three-step"):
         raise ValueError(f"method must be 'full' or 'three-step', got {method!r}")
+    if contact_angle is not None and method != "full":
+        raise ValueError("a known contact angle is for the full fit (--method full); the "
+                         "three-step method reads it off the trace")
     run = probes_to_run(traces, probe)
     out = RecordedEstimates()
     caught = (EstimationError, ArithmeticError, np.linalg.LinAlgError)
@@ -127,7 +139,7 @@ def estimate_recorded(
         try:
             if method == "full":
                 out.relaxation = estimate_full_fit(
-                    t, theta, m, geometry, clamp_weight=SIM_CLAMP_WEIGHT)
+                    t, theta, m, geometry, clamp_weight=SIM_CLAMP_WEIGHT, theta_1=contact_angle)
             else:
                 out.relaxation = estimate_three_step(t, theta, m, geometry)
         except caught as exc:
@@ -159,15 +171,34 @@ def to_probe_estimate(traces: RecordedTraces, got: RecordedEstimates) -> ProbeEs
 
 
 def check_trace_options(args: argparse.Namespace) -> None:
-    """Refuse ``--L``/``--theta-0`` without ``--traces`` and simulation options with it."""
+    """Refuse ``--L``/``--theta-0``/``--contact-angle`` without ``--traces``, simulation
+    options with it, and ``--contact-angle`` with ``--method three-step``."""
     if args.traces is None:
-        given = [o for o, v in (("--L", args.L), ("--theta-0", args.theta_0)) if v is not None]
+        given = [o for o, v in (("--L", args.L), ("--theta-0", args.theta_0),
+                                ("--contact-angle", args.contact_angle)) if v is not None]
         raise UsageError(f"{PROG}: {' and '.join(given)} need --traces FILE (a simulated "
                          "run knows its geometry)")
     given = list(dict.fromkeys(args.simulation_options))
     if given:
         raise UsageError(f"{PROG}: {', '.join(given)} cannot be used with --traces (they set "
                          "the simulated run; a recorded one is estimated as it is)")
+    if args.contact_angle is not None and args.method != "full":
+        raise UsageError(f"{PROG}: --contact-angle is for the full fit (--method full); the "
+                         "three-step method reads the contact angle off the trace")
+
+
+def _check_contact_angle(angle: float | None, traces: RecordedTraces, probe: str) -> None:
+    """Refuse a known contact angle that no relaxation trace can use: negative, or not below
+    the largest hinge angle the trace reached (no squeeze past it)."""
+    if angle is None:
+        return
+    if "relaxation" not in probes_to_run(traces, probe):
+        raise UsageError(f"{PROG}: --contact-angle is for a relaxation trace, and none is "
+                         "estimated here")
+    top = float(np.max(traces.relaxation_inputs()[1]))
+    if not 0.0 <= angle < top:
+        raise UsageError(f"{PROG}: --contact-angle {angle:g} rad must be in [0, {top:g}) rad, "
+                         "below the largest hinge angle of the relaxation trace")
 
 
 def cmd_estimate_traces(args: argparse.Namespace) -> int:
@@ -175,13 +206,16 @@ def cmd_estimate_traces(args: argparse.Namespace) -> int:
     check_trace_options(args)
     try:
         traces = load_traces(args.traces, L=args.L, theta_0=args.theta_0)
-        got = estimate_recorded(traces, method=args.method, probe=args.probe)
+        _check_contact_angle(args.contact_angle, traces, args.probe)
+        got = estimate_recorded(traces, method=args.method, probe=args.probe,
+                                contact_angle=args.contact_angle)
     except TraceFileError as exc:
         raise UsageError(f"{PROG}: {exc}") from None
     result = to_probe_estimate(traces, got)
     result.details["settings"] = {
         "traces": traces.path, "method": args.method, "probe": args.probe,
-        "clamp_weight": SIM_CLAMP_WEIGHT, "n_samples": int(traces.t.size),
+        "clamp_weight": SIM_CLAMP_WEIGHT, "contact_angle": args.contact_angle,
+        "n_samples": int(traces.t.size),
         "source": dict(traces.source),
     }
     geom = traces.geometry
