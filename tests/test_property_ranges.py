@@ -862,14 +862,19 @@ def estimate_or_typed(call: Callable[[], Any], kind: type) -> Any:
 @examples(60)
 @given(clamps())
 def test_estimators_on_valid_clamps(c: Clamp) -> None:
-    """On random-but-valid traces every viscoelastic estimator returns an estimate (positive
-    springs where it says it is reliable) or an EstimationError, nothing else."""
+    """On random-but-valid traces every viscoelastic estimator (the full fit also at the
+    trace's known contact angle) returns an estimate (positive springs where it says it is
+    reliable) or an EstimationError, nothing else."""
     for est in (
         estimate_or_typed(lambda: estimate_three_step(c.t, c.theta, c.M, c.geometry),
                           ViscoelasticEstimate),
         estimate_or_typed(lambda: estimate_full_fit(c.t, c.theta, c.M, c.geometry,
                                                     omega=c.omega, theta_d=c.theta_d,
                                                     clamp_weight=0.3),
+                          ViscoelasticEstimate),
+        estimate_or_typed(lambda: estimate_full_fit(c.t, c.theta, c.M, c.geometry,
+                                                    omega=c.omega, theta_d=c.theta_d,
+                                                    clamp_weight=0.3, theta_1=c.theta_1),
                           ViscoelasticEstimate),
     ):
         if est is not None and est.reliable:
