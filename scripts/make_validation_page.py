@@ -66,8 +66,9 @@ drawn from the
 whole documented food space (`fetch_env.food_space`: cube, ellipsoid, sphere; 8-25 mm;
 E_0 0.0123-5 MPa; g1 0.1-0.8; tau1 0.5-10 s; mu 0.1-0.8; Poisson 0.25-0.45; density
 950-1150 kg/m^3), by a scrambled Sobol' design.  The truth: g1, tau1 and mu are the
-material's; K1 + K2 is the eq. 7 stiffness of the piece's elastic twin under the same probe
-(`fetch_env.probes.elastic_stiffness`), split by g1.
+material's; K1 + K2 is the eq. 7 stiffness of the piece's elastic twin under the same probe,
+at the angle the twin was held at (`fetch_env.probes.elastic_stiffness`; short of the probe
+angle where a large, stiff piece stalls the motor), split by g1.
 
 Tuning and reporting foods are disjoint designs: seed 1000 (`TUNING_SEED`) and seed 2000
 (`REPORTING_SEED`).  Two things were chosen on data, both on the tuning foods only, and the
@@ -85,7 +86,9 @@ reporting runs say how well they hold on other foods:
   `repeated` one is quadratic in those features (their pairwise products too,
   `estimators.calibration.design`), fitted on 2048 tuning foods; the `measure` one is
   linear, fitted on 256 (`--preset measure`, its two tuning runs; the environments use it,
-  so it stays as their observations were measured);
+  so it stays as their observations were measured, fitted before the truth of the 10
+  stalled foods among them was corrected:
+  [the contact angle](validation/probes.md#the-contact-angle-of-k1-k2-and-b));
 * with it, the error model (`estimators.calibration.ErrorModel`): the size of the error the
   calibration leaves, as a log-linear function of what the probes see (the food as probed,
   the hold fit's noise and window-shift parts, residual autocorrelation and rms, the drift
