@@ -170,7 +170,11 @@ def parse_tuning_args(description: str, name: str, argv: list[str] | None
     # a setting added since the base run was made is missing from its meta: it ran with that
     # setting's default, which is what ProbeConfig fills in
     recorded = base["meta"].get("probe_config")
-    if not isinstance(recorded, dict) or ProbeConfig(**recorded) != BASE:
+    try:
+        same = isinstance(recorded, dict) and ProbeConfig(**recorded) == BASE
+    except (TypeError, ValueError):  # a setting today's ProbeConfig does not have or refuses
+        same = False
+    if not same:
         p.error(f"--base {args.base}: made with other measure-probe settings than today's "
                 f"(meta.probe_config {base['meta'].get('probe_config')}); rerun it")
     args.work.mkdir(parents=True, exist_ok=True)

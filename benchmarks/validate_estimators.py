@@ -381,7 +381,7 @@ def error_rows(records: list[dict[str, Any]], calibration: Calibration
         resid = {k: math.log(fixed[k] / r["truth"][k]) if fixed[k] > 0 else math.nan
                  for k in ERROR_TARGETS}
         k_el, true_k_el = fixed["K1"] + fixed["K2"], r["truth"]["K1"] + r["truth"]["K2"]
-        resid["K_el"] = math.log(k_el / true_k_el) if k_el > 0 else math.nan
+        resid["K_el"] = math.log(k_el / true_k_el) if k_el > 0 and true_k_el > 0 else math.nan
         rows.append((int(f["index"]), (f["shape"], f["size"], own, r["diagnostics"], resid)))
     return rows
 

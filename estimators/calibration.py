@@ -564,9 +564,9 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0, coverage: floa
                                            ("centre", "spread", "coefficients", "multiplier")}
     n_used = 0
     for t, names in ERROR_INPUTS.items():
-        X, r = _error_rows(rows, t)
         if t not in ERROR_TARGETS and not any(t in row[4] for row in rows):
             continue
+        X, r = _error_rows(rows, t)
         if len(r) < 3 * len(names):
             raise EstimationError(f"error model for {t!r} needs at least {3 * len(names)} foods "
                                   f"with its inputs, got {len(r)}")

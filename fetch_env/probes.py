@@ -930,12 +930,12 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     out.details["error_half_width"] = widths
 
 
-VISCO_SPRINGS = ("K1", "K2", "B")
+_VISCO_SPRINGS = ("K1", "K2", "B")
 
 
 def _modelled_intervals(targets: tuple[str, ...]) -> tuple[str, ...]:
     """The parameters whose intervals an error model with ``targets`` gives."""
-    return (*ERROR_TARGETS, *(VISCO_SPRINGS if "K_el" in targets else ()))
+    return (*ERROR_TARGETS, *(_VISCO_SPRINGS if "K_el" in targets else ()))
 
 
 def _interval_half_widths(widths: dict[str, float], g1: float) -> dict[str, float]:
