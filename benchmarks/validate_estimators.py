@@ -465,8 +465,8 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--set", choices=SETS, default="tuning")
     p.add_argument("--n", type=int, default=64, help="foods in the design (default 64)")
-    p.add_argument("--preset", choices=sorted(PROBE_PRESETS), default="repeated",
-                   help="probe settings (default: repeated, food-fetch estimate's)")
+    p.add_argument("--preset", choices=sorted(PROBE_PRESETS), default="precise",
+                   help="probe settings (default: precise, food-fetch estimate's)")
     p.add_argument("--noise", type=float, default=0.0,
                    help="sensor noise, sd as a share of each trace's peak (default 0)")
     p.add_argument("--workers", type=int, default=1)

@@ -32,6 +32,8 @@ from fetch_env.recording import TraceRecorder
 from fetch_env.scene import (
     BLADE_HALF_THICKNESS,
     MIN_CONTACT_TIMECONST,
+    MIN_PIECE_CONTACT_TIMECONST,
+    STIFF_CONTACT_CUBE_MESH,
     Geometry,
     Scene,
     build_scene,
@@ -414,9 +416,12 @@ class FetchSimulator:
 
     def __init__(self, pieces: tuple[Piece, ...] | list[Piece],
                  geometry: Geometry | None = None, record_hz: float = 100.0,
-                 timestep: float | None = None, impratio: float | None = None) -> None:
+                 timestep: float | None = None, impratio: float | None = None,
+                 relaxation_contact_ratio: float | None = None) -> None:
         """``timestep`` and ``impratio`` override the scene's (5 ms; impratio 1000 for one
-        piece, 100 for several: :data:`fetch_env.scene.MULTI_PIECE_IMPRATIO`) where given."""
+        piece, 100 for several: :data:`fetch_env.scene.MULTI_PIECE_IMPRATIO`) where given.
+        ``relaxation_contact_ratio``: how the relaxation experiment stiffens the blades'
+        contact with the food (:func:`relaxation_contact_timeconst`)."""
         require_finite("record_hz", record_hz)
         require(record_hz >= 100, "record_hz", record_hz, ">= 100 Hz")
         if timestep is not None:
@@ -435,7 +440,12 @@ class FetchSimulator:
         self.record_hz = record_hz
         self.timestep = timestep
         self.impratio = impratio
-        self._scenes: dict[Geometry, Scene] = {}
+        if relaxation_contact_ratio is not None:
+            require_finite("relaxation_contact_ratio", relaxation_contact_ratio)
+            require(0 < relaxation_contact_ratio <= 1e3, "relaxation_contact_ratio",
+                    relaxation_contact_ratio, "in (0, 1000] or None")
+        self.relaxation_contact_ratio = relaxation_contact_ratio
+        self._scenes: dict[tuple[Geometry, float | None], Scene] = {}
 
     def scene_for(self, experiment: str) -> Scene:
         """The compiled scene.
@@ -446,10 +456,15 @@ class FetchSimulator:
         slide down.
         """
         geometry = self.geometry
+        piece_timeconst, cube_mesh = None, None
         if experiment == "relaxation":
-            geometry = dataclasses.replace(
-                geometry, gap=min(geometry.gap, RELAXATION_GAP),
-                contact_timeconst=relaxation_contact_timeconst(self.pieces, geometry))
+            timeconst = relaxation_contact_timeconst(self.pieces, geometry,
+                                                     self.relaxation_contact_ratio)
+            geometry = dataclasses.replace(geometry, gap=min(geometry.gap, RELAXATION_GAP))
+            if self.relaxation_contact_ratio is None:
+                geometry = dataclasses.replace(geometry, contact_timeconst=timeconst)
+            else:
+                piece_timeconst, cube_mesh = timeconst, STIFF_CONTACT_CUBE_MESH
         if experiment == "slip":
             # Blade tips at half the lowest piece's centroid height: well below its equator, so
             # the faces grip its widest section and drag it onto the plate (tips above the
@@ -458,10 +473,11 @@ class FetchSimulator:
             centroid = min(0.5 * float(p.extents[2]) for p in self.pieces)
             geometry = dataclasses.replace(geometry, tip_clearance=max(
                 geometry.tip_clearance, 0.5 * centroid))
-        if geometry not in self._scenes:
-            self._scenes[geometry] = build_scene(self.pieces, geometry, self.timestep,
-                                                 self.impratio)
-        return self._scenes[geometry]
+        key = (geometry, piece_timeconst)
+        if key not in self._scenes:
+            self._scenes[key] = build_scene(self.pieces, geometry, self.timestep,
+                                            self.impratio, piece_timeconst, cube_mesh)
+        return self._scenes[key]
 
     def run(self, experiment: str = "fetch", action: FetchAction | None = None,
             observer: Callable[[mujoco.MjData], None] | None = None,
@@ -486,7 +502,8 @@ class FetchSimulator:
         return _run(scene, experiment, action, self.record_hz, observer, time_scale)
 
 
-def relaxation_contact_timeconst(pieces: tuple[Piece, ...], geometry: Geometry) -> float:
+def relaxation_contact_timeconst(pieces: tuple[Piece, ...], geometry: Geometry,
+                                 ratio: float | None = None) -> float:
     """The contact time constant of the relaxation experiment: ``geometry``'s, made stiffer
     where the food is stiff, so that the contact stays a negligible spring in series with it.
 
@@ -502,11 +519,21 @@ def relaxation_contact_timeconst(pieces: tuple[Piece, ...], geometry: Geometry) 
     the held-back ones) the env's probes then gave g1 to a median of ~2.8 % instead of ~4.7 %
     and tau1 (still from the full fit) of ~6.7 % instead of ~10 % (docs/validation/probes.md);
     soft foods (below ~0.3 MPa at 15 mm) keep ``geometry.contact_timeconst``.
+
+    A ``ratio`` (``ProbeConfig.relaxation_contact_ratio``) replaces
+    ``RELAXATION_CONTACT_RATIO``, down to ``scene.MIN_PIECE_CONTACT_TIMECONST``: the time
+    constant of the pieces' own contact (the blades' with the food), the plate's left as it
+    is, and a cube's contact mesh made finer (``scene.STIFF_CONTACT_CUBE_MESH``;
+    :meth:`FetchSimulator.scene_for`).  So much stiffer a contact needs a finer step (the
+    precise probes' 1 ms) to stay stable.
     """
-    ratio = max(p.material.young / (p.material.density * float(min(p.extents)) ** 2)
-                for p in pieces)
-    scaled = 1.0 / math.sqrt(RELAXATION_CONTACT_RATIO * ratio)
-    return float(min(geometry.contact_timeconst, max(scaled, MIN_CONTACT_TIMECONST)))
+    stiffness = max(p.material.young / (p.material.density * float(min(p.extents)) ** 2)
+                    for p in pieces)
+    if ratio is None:
+        scaled = 1.0 / math.sqrt(RELAXATION_CONTACT_RATIO * stiffness)
+        return float(min(geometry.contact_timeconst, max(scaled, MIN_CONTACT_TIMECONST)))
+    scaled = 1.0 / math.sqrt(ratio * stiffness)
+    return float(min(geometry.contact_timeconst, max(scaled, MIN_PIECE_CONTACT_TIMECONST)))
 
 
 def servo_commands(scene: Scene, profile: Profile) -> tuple[np.ndarray, np.ndarray]:

@@ -181,7 +181,9 @@ _COMMON_DOC = """
     the default probes' 1.3, 3.0 and 0.1 % (6.7, 15.9 and 6.2 %), for 1.37x the reset's
     CPU time; ``probes="repeated"`` (seven clamps, K1, K2 and B at the depth camera's
     contact angle, the food space's quadratic calibration) gives g1 0.8 / 2.5 % and tau1
-    1.4 / 5.8 %, for 6.1x (``docs/estimator_validation.md``).
+    1.4 / 5.8 %, for 6.1x (``docs/estimator_validation.md``); ``probes="precise"`` runs
+    ``food-fetch estimate``'s probes (repeated's at a 1 ms step, nearly rigid friction and a
+    much stiffer blade contact; several seconds a reset).
     ``probe_time_scale=1, probe_time_growth=0`` simulates the hold in real time (the unscaled
     reference); ``probe_hold=0.3`` still gives mu but g1 and tau1 only coarsely or not at
     all.
@@ -253,7 +255,7 @@ _COMMON_DOC = """
     | lift_height | 0.005 | lift distance [m] |
     | air_hold | 0.5 | hold in the air before counting fetched pieces [s] |
     | settle | 0.2 | settling on the plate before the clamp [s] |
-    | probes | "{probes}" | reset probes' preset: "env" (6 s hold), "measure" (20 s, mu per blade) |
+    | probes | "{probes}" | reset probes: "env", "measure", "repeated", "precise" |
     | probe_hold | None | relaxation probe hold [s] (None: the preset's); of the order of tau1 |
     | probe_omega | None | relaxation probe's clamping angular velocity [rad/s] (preset: 0.1) |
     | probe_strain | None | relaxation probe's squeeze past first contact, share of width (0.06) |

@@ -223,6 +223,16 @@ class ProbeConfig:
             by much more: on 156 tuning foods (``measure`` probes, uncalibrated) K1 + K2 was
             within 6.6 / 39 % (median / 95th percentile) with the fit's angle and 1.2 / 9.2 %
             with the camera's; g_1 2.4 / 11.6 % and 2.3 / 11.6 %, tau_1 unchanged.
+        relaxation_contact_ratio: None stiffens every contact of the relaxation scene at
+            ``controller.RELAXATION_CONTACT_RATIO`` times the food's ``E / (rho s^2)``, down
+            to a 1 ms time constant; a ratio stiffens only the blades' contact with the
+            piece, at that ratio, down to 20 us, leaves the plate's (a stiff plate contact
+            launches a resting piece) and gives a cube a finer contact mesh (its flat face
+            chatters under so stiff a contact on the coarse one:
+            ``scene.STIFF_CONTACT_CUBE_MESH``).  A contact in series with the food
+            lengthens the held moment's decay (``tau1 (1 + K2 / (K1 + k_c))``), so the
+            stiffer it is the closer the hold is to the food's own relaxation; it needs a
+            fine step (``relaxation_timestep``) to stay stable (the ``precise`` preset).
     """
 
     strain: float = 0.06
@@ -243,6 +253,7 @@ class ProbeConfig:
     relaxation_repeats: int = 1
     repeat_strain_step: float = 0.02
     contact_angle: ContactAngle = "fit"
+    relaxation_contact_ratio: float | None = None
 
     def __post_init__(self) -> None:
         for name, (lo, hi, lo_open) in _PROBE_LIMITS.items():
@@ -268,6 +279,10 @@ class ProbeConfig:
                 "slip_envelope", self.slip_envelope, f"one of {SLIP_ENVELOPES}")
         require(isinstance(self.contact_angle, str) and self.contact_angle in CONTACT_ANGLES,
                 "contact_angle", self.contact_angle, f"one of {CONTACT_ANGLES}")
+        if self.relaxation_contact_ratio is not None:
+            require_finite("relaxation_contact_ratio", self.relaxation_contact_ratio)
+            require(0 < self.relaxation_contact_ratio <= 1e3, "relaxation_contact_ratio",
+                    self.relaxation_contact_ratio, "in (0, 1000] or None")
 
 
 # ProbeConfig's settings: name -> (low, high, low end excluded)
@@ -368,7 +383,8 @@ def elastic_stiffness(piece: Piece, config: ProbeConfig,
     twin = dataclasses.replace(piece, x=0.0, y=0.0,
                                material=dataclasses.replace(piece.material, g1=0.0))
     sim = FetchSimulator((twin,), geometry, impratio=config.relaxation_impratio,
-                         timestep=config.relaxation_timestep)
+                         timestep=config.relaxation_timestep,
+                         relaxation_contact_ratio=config.relaxation_contact_ratio)
     theta_c = first_contact_angle(sim.scene_for("relaxation"))[0]
     hold = 0.5
     command = probe_angle(sim, config.strain, "relaxation")
@@ -730,7 +746,8 @@ def _relaxation_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | No
     its estimates into ``out`` (with the hold's drift diagnostics where
     ``drift_diagnostics``); the first clamp's action, geometry and traces are kept."""
     sim = FetchSimulator((piece,), geometry, impratio=config.relaxation_impratio,
-                         timestep=config.relaxation_timestep)
+                         timestep=config.relaxation_timestep,
+                         relaxation_contact_ratio=config.relaxation_contact_ratio)
     runs = []
     for strain in repeat_strains(config):
         theta_d = probe_angle(sim, strain, "relaxation")
@@ -1069,6 +1086,16 @@ PROBE_PRESETS: dict[str, ProbeConfig] = {
     # at the camera's contact angle (ProbeConfig.contact_angle)
     "repeated": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade",
                             relaxation_repeats=7, contact_angle="camera"),
+    # repeated's probes with a relaxation clamp whose blade contact is ~300 times stiffer
+    # (only the blades', ProbeConfig.relaxation_contact_ratio; a cube's contact mesh finer),
+    # friction nearly rigid (impratio 1e4: a held contact creeps ~ 1 / impratio) and a 1 ms
+    # step that keeps so stiff a contact stable: the held moment then relaxes as the food
+    # does (uncalibrated, one clamp, tuning foods: tau1 within about 0.5 % median where the
+    # measure probes read 5 %; docs/estimator_validation.md), at about 5x the probes' cost
+    "precise": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade",
+                           relaxation_repeats=7, contact_angle="camera",
+                           relaxation_timestep=0.001, relaxation_impratio=1e4,
+                           relaxation_contact_ratio=2.25),
 }
 
 # Calibrations of the presets' systematic errors, fitted on the validation harness's tuning

@@ -51,6 +51,17 @@ CONDITIONING_LIMIT = 1e4
 MULTI_PIECE_IMPRATIO = 100.0
 BASE_TIMESTEP = 0.005  # [s] the base scene's physics step (assets/fetch_base.xml)
 MIN_CONTACT_TIMECONST = 0.001  # [s] the stiffest contact Geometry allows (stable at the 5 ms step)
+# [s] the stiffest blade-food contact a probe may ask for (build_scene's
+# piece_contact_timeconst): the precise relaxation probe's, at a 1 ms step, for a 5 MPa piece
+# 4.8 mm thin (ProbeConfig.relaxation_contact_ratio)
+MIN_PIECE_CONTACT_TIMECONST = 2e-5
+# Vertices per axis of a cube's contact mesh under such a stiff contact (build_scene's
+# cube_mesh_count): on the 3 x 3 x 3 mesh a cube's flat face, pressed by a tilted blade,
+# chatters (a 15 mm, 2 MPa cube's held moment swung between 0.35 and 1.2 N m); on 5 x 5 x 5
+# the load spreads over the face.  One precise clamp, uncalibrated, on 64 tuning cubes:
+# tau1 within 0.56 / 7.2 % (median / 90th percentile), against 4.5 / 28 % on 3 x 3 x 3;
+# 4 x 4 x 4 left one of 64 unidentified.
+STIFF_CONTACT_CUBE_MESH = 5
 BLADE_HALF_THICKNESS = 0.002  # [m] thick enough that no food vertex can reach the far side
 
 # MuJoCo's process-wide asset cache makes the compiled flex stiffness and node masses depend,
@@ -212,22 +223,36 @@ _LIBC: Any = None  # glibc's malloc_trim once looked up (False: none)
 
 
 def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | None = None,
-                timestep: float | None = None, impratio: float | None = None) -> Scene:
+                timestep: float | None = None, impratio: float | None = None,
+                piece_contact_timeconst: float | None = None,
+                cube_mesh_count: int | None = None) -> Scene:
     """Compile the base scene with ``pieces`` on the plate and the end-effector above them.
 
     ``timestep`` and ``impratio`` override the base scene's (5 ms; impratio 1000 for one
-    piece, :data:`MULTI_PIECE_IMPRATIO` for several).  Validates everything first (pieces,
-    overlaps, geometry) so that nothing is compiled for bad input.
+    piece, :data:`MULTI_PIECE_IMPRATIO` for several).  ``piece_contact_timeconst`` (a probe's
+    instrument setting, down to :data:`MIN_PIECE_CONTACT_TIMECONST`) gives the pieces' own
+    contact that time constant, and so the blades' contact with them (the food's priority
+    sets it), while the plate's stays ``geometry.contact_timeconst``: a stiff plate contact
+    launches a resting piece.  ``cube_mesh_count`` replaces a cube's contact mesh's vertices
+    per axis (:data:`MESH_COUNT`; :data:`STIFF_CONTACT_CUBE_MESH` under a stiff contact).
+    Validates everything first (pieces, overlaps, geometry) so that nothing is compiled for
+    bad input.
     """
     require(isinstance(pieces, tuple | list) and len(pieces) > 0, "pieces", pieces,
             "a non-empty sequence of Piece")
     require(geometry is None or isinstance(geometry, Geometry), "geometry", geometry,
             "a Geometry or None")
     for name, value, lo, hi in (("timestep", timestep, 1e-4, 0.02),
-                                ("impratio", impratio, 1.0, 1e4)):
+                                ("impratio", impratio, 1.0, 1e4),
+                                ("piece_contact_timeconst", piece_contact_timeconst,
+                                 MIN_PIECE_CONTACT_TIMECONST, 0.1)):
         if value is not None:
             require_finite(name, value)
             require(lo <= value <= hi, name, value, f"in [{lo:g}, {hi:g}]")
+    require(cube_mesh_count is None
+            or (isinstance(cube_mesh_count, int) and not isinstance(cube_mesh_count, bool)
+                and 2 <= cube_mesh_count <= 8),
+            "cube_mesh_count", cube_mesh_count, "an integer in [2, 8] or None")
     pieces = tuple(pieces)
     geometry = geometry or Geometry()
     stage_xy = _check_pieces_fit(pieces, geometry)
@@ -242,8 +267,11 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         geom.solref = solref
     plate = spec.geom("plate")
     plate.friction = [pieces[0].material.plate_mu, 0.005, 0.0001]
+    piece_solref = (solref if piece_contact_timeconst is None
+                    else contact_solref(piece_contact_timeconst, spec.option.timestep))
+    counts = dict(MESH_COUNT, **({} if cube_mesh_count is None else {"cube": cube_mesh_count}))
     for i, p in enumerate(pieces):
-        _add_piece(spec, i, p, solref)
+        _add_piece(spec, i, p, piece_solref, counts[p.shape])
     with warnings.catch_warnings():
         # MuJoCo warns that a trilinear flex "has no equality constraints or passive forces"
         # although its elasticity is active (checked in tests/test_viscoelastic.py).
@@ -318,10 +346,10 @@ def _base_spec(pieces: tuple[Piece, ...], geometry: Geometry, pose: PoseInfo,
     return spec
 
 
-def _add_piece(spec: mujoco.MjSpec, i: int, p: Piece, solref: list[float]) -> None:
-    """Add piece ``i`` as a trilinear flex (one cell) with its material and contact settings."""
+def _add_piece(spec: mujoco.MjSpec, i: int, p: Piece, solref: list[float], count: int) -> None:
+    """Add piece ``i`` as a trilinear flex (one cell) with its material and contact settings,
+    its contact mesh ``count`` vertices per axis."""
     body = spec.worldbody.add_body(name=f"piece_{i}", pos=p.centre.tolist())
-    count = MESH_COUNT[p.shape]
     ext = p.extents
     flex = body.make_flex(
         f"piece_{i}", type="grid" if p.shape == "cube" else "ellipsoid", dim=3,

@@ -19,7 +19,8 @@ QUICK = [f for f in CORNERS if (f.shape, f.size, f.young, f.g1) in {
 
 
 def _argv(f: Food, probes: str) -> list[str]:
-    study = ["--probes", "study", "--hold", "8"] if probes == "study" else []
+    study = {"study": ["--probes", "study", "--hold", "8"], "repeated": ["--probes", "repeated"],
+             "precise": []}[probes]  # precise: the default
     return ["estimate", "--shape", f.shape, "--size", repr(f.size), "--young", repr(f.young),
             "--g1", repr(f.g1), "--tau1", repr(f.tau1), "--mu", repr(f.mu), *study]
 
@@ -41,7 +42,7 @@ def _check(f: Food, capsys: pytest.CaptureFixture[str], probes: str) -> None:
             assert math.isfinite(float(value)) and float(value) > 0
 
 
-@pytest.mark.parametrize("probes", ["repeated", "study"])
+@pytest.mark.parametrize("probes", ["precise", "study"])
 @pytest.mark.parametrize("food", QUICK, ids=lambda f: f"{f.shape}-{f.size}-{f.young:g}")
 def test_estimate_answers_at_hard_corners(food: Food, probes: str,
                                           capsys: pytest.CaptureFixture[str]) -> None:
@@ -50,7 +51,7 @@ def test_estimate_answers_at_hard_corners(food: Food, probes: str,
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("probes", ["repeated", "study"])
+@pytest.mark.parametrize("probes", ["precise", "repeated", "study"])
 @pytest.mark.parametrize("food", CORNERS, ids=lambda f: f"{f.shape}-{f.size}-{f.young:g}-{f.g1}")
 def test_estimate_answers_at_every_corner(food: Food, probes: str,
                                           capsys: pytest.CaptureFixture[str]) -> None:

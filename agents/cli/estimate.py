@@ -182,12 +182,12 @@ def probe_actions(args: argparse.Namespace, pieces: tuple[Any, ...]) -> dict[str
 
 STUDY_OPTIONS = ("--theta-d", "--omega", "--hold", "--clamp-weight", "--slide-time")
 # the presets of fetch_env.probes that --probes offers besides the study's fixed clamp
-ADAPTIVE_PROBES = ("repeated", "measure")
+ADAPTIVE_PROBES = ("precise", "repeated", "measure")
 
 
 def which_probes(args: argparse.Namespace) -> str:
     """``--probes``, or where it is omitted: "study" when a study-probe option is given
-    (``STUDY_OPTIONS`` or ``--method three-step``), else "repeated"."""
+    (``STUDY_OPTIONS`` or ``--method three-step``), else "precise"."""
     given = [o for o in STUDY_OPTIONS if o in getattr(args, "simulation_options", ())]
     if args.probes in ADAPTIVE_PROBES and (given or args.method != "full"):
         what = ", ".join(given) or f"--method {args.method}"
@@ -195,12 +195,12 @@ def which_probes(args: argparse.Namespace) -> str:
                          f"effect with --probes {args.probes} (give --probes study)")
     if args.probes is not None:
         return str(args.probes)
-    return "study" if given or args.method != "full" else "repeated"
+    return "study" if given or args.method != "full" else "precise"
 
 
 
 def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any,
-                preset: str = "repeated") -> ProbeEstimate:
+                preset: str = "precise") -> ProbeEstimate:
     """The shared probes of ``fetch_env.probes``, ``preset``'s settings (adaptive angles,
     20 s time-scaled holds, calibrated, intervals with model error), held to the
     elastic-twin truth."""
@@ -453,16 +453,17 @@ def add_options(p: argparse.ArgumentParser) -> None:
         "--probes",
         choices=(*ADAPTIVE_PROBES, "study"),
         default=None,
-        help="repeated: probes made for any food (the clamp angle adapts to the piece, seven "
+        help="precise: probes made for any food (the clamp angle adapts to the piece, seven "
         "20 s time-scaled relaxation clamps at nearby squeezes and the medians of g1 and "
-        "tau1, K1, K2, B at the depth camera's contact angle, a calibration fitted on "
-        "reference foods, 95 %% intervals that include model error; "
-        "docs/estimator_validation.md); measure: the same with one clamp and the fitted "
-        "contact angle (the probes of FoodFetch-Row-v2), a fifth of the time, twice the "
-        "tails of g1 and tau1 and more than twice K1's error; "
-        "study: the study's fixed clamp (--theta-d, --omega, --hold, --method, "
-        "--clamp-weight, --slide-time). Default: study where one of those is given, else "
-        "repeated",
+        "tau1, K1, K2, B at the depth camera's contact angle, a 1 ms step, nearly rigid "
+        "friction and the blades' contact stiffened so that the held moment relaxes as the "
+        "food does, a calibration fitted on reference foods, 95 %% "
+        "intervals that include model error; docs/estimator_validation.md; about 5 s a "
+        "food); repeated: the same at the environments' 5 ms step and contact, a fifth of "
+        "the time; measure: repeated with one clamp and the fitted contact angle (the "
+        "probes of FoodFetch-Row-v2); study: the study's fixed clamp (--theta-d, --omega, "
+        "--hold, --method, --clamp-weight, --slide-time). Default: study where one of those "
+        "is given, else precise",
     )
     p.add_argument(
         "--method",
