@@ -52,8 +52,9 @@ MULTI_PIECE_IMPRATIO = 100.0
 BASE_TIMESTEP = 0.005  # [s] the base scene's physics step (assets/fetch_base.xml)
 MIN_CONTACT_TIMECONST = 0.001  # [s] the stiffest contact Geometry allows (stable at the 5 ms step)
 # [s] the stiffest blade-food contact a probe may ask for (build_scene's
-# piece_contact_timeconst): the precise relaxation probe's, at a 1 ms step, for a 5 MPa piece
-# 4.8 mm thin (ProbeConfig.relaxation_contact_ratio)
+# piece_contact_timeconst), stable at a 1 ms step: below the precise relaxation probe's for
+# the stiffest soft food (~44 us for a 5 MPa piece 4.8 mm thin; ProbeConfig.
+# relaxation_contact_ratio), the floor of stiffer ones
 MIN_PIECE_CONTACT_TIMECONST = 2e-5
 # Vertices per axis of a cube's contact mesh under such a stiff contact (build_scene's
 # cube_mesh_count): on the 3 x 3 x 3 mesh a cube's flat face, pressed by a tilted blade,
@@ -174,6 +175,9 @@ class Scene:
     pose: PoseInfo
     ids: dict[str, int] = field(default_factory=dict)
     piece_flex: list[int] = field(default_factory=list)
+    # a probe's own contact settings (build_scene), None where the geometry's hold
+    piece_contact_timeconst: float | None = None
+    cube_mesh_count: int | None = None
 
     @property
     def robot_nv(self) -> int:
@@ -183,9 +187,14 @@ class Scene:
         return int(m.nv - sum(3 * m.flex_nodenum[f] for f in self.piece_flex))
 
     def describe(self) -> dict[str, Any]:
-        """A JSON-able description that rebuilds the same scene."""
-        return {"pieces": [p.to_dict() for p in self.pieces],
-                "geometry": asdict(self.geometry), "pose": self.pose.to_dict()}
+        """A JSON-able description that rebuilds the same scene (with a probe's own contact
+        settings where it has them)."""
+        out = {"pieces": [p.to_dict() for p in self.pieces],
+               "geometry": asdict(self.geometry), "pose": self.pose.to_dict()}
+        for key in ("piece_contact_timeconst", "cube_mesh_count"):
+            if getattr(self, key) is not None:
+                out[key] = getattr(self, key)
+        return out
 
 
 def _face_offset(pieces: tuple[Piece, ...], geometry: Geometry, stage_y: float) -> float:
@@ -277,7 +286,9 @@ def build_scene(pieces: tuple[Piece, ...] | list[Piece], geometry: Geometry | No
         # although its elasticity is active (checked in tests/test_viscoelastic.py).
         warnings.filterwarnings("ignore", message=".*no equality constraints or passive")
         model = spec.compile()
-    scene = Scene(model=model, pieces=pieces, geometry=geometry, pose=pose)
+    scene = Scene(model=model, pieces=pieces, geometry=geometry, pose=pose,
+                  piece_contact_timeconst=piece_contact_timeconst,
+                  cube_mesh_count=cube_mesh_count)
     _look_up_ids(scene)
     return scene
 

@@ -113,6 +113,10 @@ def test_only_the_blades_contact_is_stiffened_and_a_cube_s_mesh_refined() -> Non
     assert m.flex_vertnum[0] == relaxation_model(STIFF_SPHERE, None).flex_vertnum[0]
     cube = relaxation_model(STIFF_CUBE, PRECISE.relaxation_contact_ratio)
     assert cube.flex_vertnum[0] == STIFF_CONTACT_CUBE_MESH**3 == 125
+    said = FetchSimulator(STIFF_CUBE, relaxation_contact_ratio=PRECISE.relaxation_contact_ratio
+                          ).scene_for("relaxation").describe()  # what a run's JSON records
+    assert said["cube_mesh_count"] == 5 and 0 < said["piece_contact_timeconst"] < 1e-3
+    assert "cube_mesh_count" not in FetchSimulator(STIFF_CUBE).scene_for("relaxation").describe()
     legacy = relaxation_model(STIFF_CUBE, None)
     assert legacy.flex_vertnum[0] == MESH_COUNT["cube"] ** 3
     np.testing.assert_allclose(legacy.geom_solref[legacy.geom("plate").id],
