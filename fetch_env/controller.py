@@ -440,10 +440,7 @@ class FetchSimulator:
         self.record_hz = record_hz
         self.timestep = timestep
         self.impratio = impratio
-        if relaxation_contact_ratio is not None:
-            require_finite("relaxation_contact_ratio", relaxation_contact_ratio)
-            require(0 < relaxation_contact_ratio <= 1e3, "relaxation_contact_ratio",
-                    relaxation_contact_ratio, "in (0, 1000] or None")
+        check_relaxation_contact_ratio(relaxation_contact_ratio)
         self.relaxation_contact_ratio = relaxation_contact_ratio
         self._scenes: dict[tuple[Geometry, float | None], Scene] = {}
 
@@ -502,6 +499,13 @@ class FetchSimulator:
         return _run(scene, experiment, action, self.record_hz, observer, time_scale)
 
 
+def check_relaxation_contact_ratio(ratio: float | None) -> None:
+    """Refuse a relaxation contact ratio that is not None or a number in (0, 1000]."""
+    if ratio is not None:
+        require_finite("relaxation_contact_ratio", ratio)
+        require(0 < ratio <= 1e3, "relaxation_contact_ratio", ratio, "in (0, 1000] or None")
+
+
 def relaxation_contact_timeconst(pieces: tuple[Piece, ...], geometry: Geometry,
                                  ratio: float | None = None) -> float:
     """The contact time constant of the relaxation experiment: ``geometry``'s, made stiffer
@@ -529,11 +533,10 @@ def relaxation_contact_timeconst(pieces: tuple[Piece, ...], geometry: Geometry,
     """
     stiffness = max(p.material.young / (p.material.density * float(min(p.extents)) ** 2)
                     for p in pieces)
-    if ratio is None:
-        scaled = 1.0 / math.sqrt(RELAXATION_CONTACT_RATIO * stiffness)
-        return float(min(geometry.contact_timeconst, max(scaled, MIN_CONTACT_TIMECONST)))
+    ratio, floor = ((RELAXATION_CONTACT_RATIO, MIN_CONTACT_TIMECONST) if ratio is None
+                    else (ratio, MIN_PIECE_CONTACT_TIMECONST))
     scaled = 1.0 / math.sqrt(ratio * stiffness)
-    return float(min(geometry.contact_timeconst, max(scaled, MIN_PIECE_CONTACT_TIMECONST)))
+    return float(min(geometry.contact_timeconst, max(scaled, floor)))
 
 
 def servo_commands(scene: Scene, profile: Profile) -> tuple[np.ndarray, np.ndarray]:

@@ -84,7 +84,14 @@ from estimators import (
 from estimators.calibration import ERROR_TARGETS, Calibration
 from estimators.uncertainty import DRIFT_DIAGNOSTICS, hold_with_intervals, log_interval
 from estimators.uncertainty import drift_diagnostics as uncertainty_drift
-from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator, SimResult, TimeScale
+from fetch_env.controller import (
+    PHASE_CODE,
+    FetchAction,
+    FetchSimulator,
+    SimResult,
+    TimeScale,
+    check_relaxation_contact_ratio,
+)
 from fetch_env.errors import (
     SimulationDivergedError,
     require,
@@ -279,10 +286,7 @@ class ProbeConfig:
                 "slip_envelope", self.slip_envelope, f"one of {SLIP_ENVELOPES}")
         require(isinstance(self.contact_angle, str) and self.contact_angle in CONTACT_ANGLES,
                 "contact_angle", self.contact_angle, f"one of {CONTACT_ANGLES}")
-        if self.relaxation_contact_ratio is not None:
-            require_finite("relaxation_contact_ratio", self.relaxation_contact_ratio)
-            require(0 < self.relaxation_contact_ratio <= 1e3, "relaxation_contact_ratio",
-                    self.relaxation_contact_ratio, "in (0, 1000] or None")
+        check_relaxation_contact_ratio(self.relaxation_contact_ratio)
 
 
 # ProbeConfig's settings: name -> (low, high, low end excluded)
