@@ -1,0 +1,132 @@
+"""How the slip probe's clamp reads mu: its gap, squeeze and step against the truth, on the
+tuning foods only (``TUNING_SEED``), uncalibrated, with and without 1 % sensor noise.
+
+The blades close by turning about the hinge, so at the slip probe's clamp angle their faces
+lean in by that angle while a cube's sides stand upright.  A blade tip's edge then presses
+into the side, and the normals of its contacts (the side's) lean from the blade's face by
+the clamp angle: in the blade's frame their push reads as friction, ``mu + angle (1 +
+mu^2)``.  A blade that starts closer to the food (``ProbeConfig.slip_gap``) and squeezes it
+less (``slip_strain``) closes by a smaller angle.  Each variant here is the ``measure``
+preset's slip probe with some of those settings changed; the last is the ``precise``
+preset's.  Each reads mu with the two half-spoons' envelopes (``per_blade``) and, where
+sensor noise is added, also less what the noise adds (``per_blade_denoised``).
+
+    python benchmarks/slip_probe.py --n 512 --workers 2
+
+Prints a table (median, 90th and 95th percentile and maximum of |mu error|, mean error,
+foods past 1.4 %) and writes it with the settings to ``--out`` (default
+``docs/data/validation/slip_probe.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import validate_estimators as ve
+
+from estimators import EstimationError
+from fetch_env.errors import ParameterClippedWarning
+from fetch_env.food_space import TUNING_SEED, Food, sample_foods
+from fetch_env.probes import PROBE_PRESETS, ProbeConfig, estimate_mu, slip_run
+
+MEASURE = PROBE_PRESETS["measure"]
+PRECISE = PROBE_PRESETS["precise"]
+GAP = PRECISE.slip_gap
+VARIANTS: dict[str, ProbeConfig] = {
+    "measure (gap 1 mm, squeeze 0.1, 10 ms)": MEASURE,
+    "gap 0.1 mm, squeeze 0.1": dataclasses.replace(MEASURE, slip_gap=GAP),
+    "gap 0.1 mm, squeeze 0.05": dataclasses.replace(MEASURE, slip_gap=GAP, slip_strain=0.05),
+    "gap 0.1 mm, squeeze 0.03": dataclasses.replace(MEASURE, slip_gap=GAP, slip_strain=0.03),
+    "gap 0.1 mm, squeeze 0.03, 5 ms": dataclasses.replace(
+        MEASURE, slip_gap=GAP, slip_strain=0.03, slip_timestep=0.005),
+    "precise (gap 0.1 mm, squeeze 0.03, 2.5 ms)": PRECISE,
+}
+NOISE = 0.01
+
+
+def food_errors(food: Food, config: ProbeConfig) -> dict[str, float]:
+    """mu's relative error on ``food``: without noise, and with ``NOISE`` read per blade
+    and per blade less the noise (noise drawn from the food's index); NaN where no
+    estimate."""
+    warnings.simplefilter("ignore", ParameterClippedWarning)
+    run = slip_run(food.piece(), config)
+    out = {}
+    for key, noise, envelope in (("noise0", 0.0, "per_blade"),
+                                 ("noise_per_blade", NOISE, "per_blade"),
+                                 ("noise_denoised", NOISE, "per_blade_denoised")):
+        try:
+            mu = estimate_mu(run, noise, np.random.default_rng(food.index),
+                             envelope=envelope)[0]
+            out[key] = mu / food.mu - 1
+        except EstimationError:
+            out[key] = float("nan")
+    return out
+
+
+def summarise(errors: list[float]) -> dict[str, float]:
+    """Median, 90th and 95th percentile and max of |error|, mean error, foods past 1.4 % and
+    foods without an estimate."""
+    e = np.array(errors)
+    ok = e[np.isfinite(e)]
+    a = np.abs(ok)
+    return {"median": float(np.median(a)), "p90": float(np.percentile(a, 90)),
+            "p95": float(np.percentile(a, 95)), "max": float(a.max()),
+            "mean": float(ok.mean()), "past_1.4%": int((a > 0.014).sum()),
+            "failed": int(e.size - ok.size)}
+
+
+def table(results: dict[str, dict[str, dict[str, float]]]) -> str:
+    """The summary as a Markdown table, one row a variant and reading."""
+    rows = ["| slip probe | reading | median / 90th / 95th / max | mean | past 1.4 % |",
+            "|---|---|---|---|---|"]
+    readings = {"noise0": "no noise", "noise_per_blade": "1 % noise",
+                "noise_denoised": "1 % noise, denoised"}
+    for name, by_reading in results.items():
+        for key, label in readings.items():
+            s = by_reading[key]
+            rows.append(f"| {name} | {label} | {100 * s['median']:.2f} / {100 * s['p90']:.1f}"
+                        f" / {100 * s['p95']:.1f} / {100 * s['max']:.0f} % | "
+                        f"{100 * s['mean']:+.2f} % | {s['past_1.4%']} |")
+    return "\n".join(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--n", type=int, default=512, help="tuning foods (default 512)")
+    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--out", type=Path, default=Path("docs/data/validation/slip_probe.json"))
+    args = p.parse_args(argv)
+    if not 16 <= args.n <= 4096 or args.workers < 1:
+        p.error(f"--n {args.n} must be in [16, 4096] and --workers {args.workers} >= 1")
+    foods = sample_foods(args.n, TUNING_SEED)
+    results: dict[str, dict[str, dict[str, float]]] = {}
+    with ProcessPoolExecutor(args.workers) as pool:
+        for name, config in VARIANTS.items():
+            per_food = list(pool.map(food_errors, foods, [config] * len(foods), chunksize=8))
+            results[name] = {key: summarise([f[key] for f in per_food])
+                             for key in per_food[0]}
+            print(f"{name}: done", file=sys.stderr, flush=True)
+    summary: dict[str, Any] = {
+        "meta": {"set": "tuning", "seed": TUNING_SEED, "n": args.n, "noise": NOISE,
+                 "variants": {k: dataclasses.asdict(v) for k, v in VARIANTS.items()},
+                 "command": "python benchmarks/slip_probe.py " + " ".join(argv or sys.argv[1:])},
+        "results": results}
+    ve._write_atomic(args.out, json.dumps(summary, indent=1) + "\n")
+    print(table(results))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
