@@ -646,11 +646,12 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
     mu; so mu is the larger of its estimate and the upper envelope of the ratio (its
     ``ENVELOPE_QUANTILE`` quantile over the last three quarters of the slide, where the
     blades grip; with ``envelope="per_blade"`` each half-spoon's, the lower of the two, and
-    the lower of the two faces' plateaus, see :data:`SLIP_ENVELOPES`).  The interval adds,
-    on the log scale, the estimator's own (noise) interval, the gap between the plateau and
-    the envelope and between the two half-spoons (model error), and
-    ``PROBE_SYSTEMATIC_SD['mu']``.  ``noise`` (with ``rng``)
-    adds white noise of that share of each force trace's peak first.  ``diagnostics`` (where
+    the lower of the two faces' plateaus; with ``"per_blade_denoised"`` those envelopes less
+    what sensor noise adds, see :data:`SLIP_ENVELOPES`).  The interval adds, on the log
+    scale, the estimator's own (noise) interval and what noise added to the envelope, the
+    gap between the plateau and the envelope and between the two half-spoons (model error),
+    and ``PROBE_SYSTEMATIC_SD['mu']``.  ``noise`` (with ``rng``) adds white noise of that
+    share of each force trace's peak first.  ``diagnostics`` (where
     given) receives the slide's (:func:`_mu_diagnostics`).
     """
     _check_run_args(result, "slip", noise, rng)
