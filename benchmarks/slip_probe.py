@@ -13,19 +13,20 @@ sensor noise is added, also less what the noise adds (``per_blade_denoised``).
 
     python benchmarks/slip_probe.py --n 512 --workers 2
 
-Prints a table (median, 90th and 95th percentile and maximum of |mu error|, mean error,
-foods past 1.4 %) and writes it with the settings to ``--out`` (default
-``docs/data/validation/slip_probe.json``).
+Each variant's per-food errors stream to ``--work`` (a stopped run continues from them when
+the same command is run again).  Prints a table (median, 90th and 95th percentile and
+maximum of |mu error|, mean error, foods past 1.4 %) and writes it with the settings to
+``--out`` (default ``docs/data/validation/slip_probe.json``).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import hashlib
 import json
 import sys
 import warnings
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -54,15 +55,18 @@ VARIANTS: dict[str, ProbeConfig] = {
     "precise (gap 0.1 mm, squeeze 0.03, 2.5 ms)": PRECISE,
 }
 NOISE = 0.01
+# each food's readings of mu: the key of its error and the table's label
+READINGS = {"noise0": "no noise", "noise_per_blade": "1 % noise",
+            "noise_denoised": "1 % noise, denoised"}
 
 
-def food_errors(food: Food, config: ProbeConfig) -> dict[str, float]:
-    """mu's relative error on ``food``: without noise, and with ``NOISE`` read per blade
-    and per blade less the noise (noise drawn from the food's index); NaN where no
-    estimate."""
+def food_errors(food: Food, config: ProbeConfig) -> dict[str, Any]:
+    """mu's relative error on ``food`` (a record naming it by index): without noise, and
+    with ``NOISE`` read per blade and per blade less the noise (noise drawn from the food's
+    index); NaN where no estimate."""
     warnings.simplefilter("ignore", ParameterClippedWarning)
     run = slip_run(food.piece(), config)
-    out = {}
+    out: dict[str, Any] = {"food": {"index": food.index}}
     for key, noise, envelope in (("noise0", 0.0, "per_blade"),
                                  ("noise_per_blade", NOISE, "per_blade"),
                                  ("noise_denoised", NOISE, "per_blade_denoised")):
@@ -73,6 +77,21 @@ def food_errors(food: Food, config: ProbeConfig) -> dict[str, float]:
         except EstimationError:
             out[key] = float("nan")
     return out
+
+
+def run_variant(name: str, config: ProbeConfig, foods: list[Food], work: Path, workers: int
+                ) -> tuple[list[dict[str, Any]], str]:
+    """The records of ``config``'s slip probe on ``foods``, streamed to a file in ``work``
+    named by the settings (records of other settings are never resumed into it) and resumed
+    from it; and why it stopped ("" when every food finished)."""
+    settings = json.dumps(dataclasses.asdict(config), sort_keys=True)
+    tag = hashlib.sha256(settings.encode()).hexdigest()[:10]
+    path = work / f"{name.split(' (')[0].replace(' ', '_').replace(',', '')}-{tag}.jsonl"
+    done = ve._done_indices(path)
+    records = list(done.values())
+    tasks = [(f, config) for f in foods if f.index not in done]
+    stopped = ve.run_streamed(food_errors, tasks, workers, path, records) if tasks else ""
+    return records, stopped
 
 
 def summarise(errors: list[float]) -> dict[str, float]:
@@ -91,10 +110,8 @@ def table(results: dict[str, dict[str, dict[str, float]]]) -> str:
     """The summary as a Markdown table, one row a variant and reading."""
     rows = ["| slip probe | reading | median / 90th / 95th / max | mean | past 1.4 % |",
             "|---|---|---|---|---|"]
-    readings = {"noise0": "no noise", "noise_per_blade": "1 % noise",
-                "noise_denoised": "1 % noise, denoised"}
     for name, by_reading in results.items():
-        for key, label in readings.items():
+        for key, label in READINGS.items():
             s = by_reading[key]
             rows.append(f"| {name} | {label} | {100 * s['median']:.2f} / {100 * s['p90']:.1f}"
                         f" / {100 * s['p95']:.1f} / {100 * s['max']:.0f} % | "
@@ -106,18 +123,25 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--n", type=int, default=512, help="tuning foods (default 512)")
     p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--work", type=Path, default=Path("out/slip_probe"))
     p.add_argument("--out", type=Path, default=Path("docs/data/validation/slip_probe.json"))
     args = p.parse_args(argv)
     if not 16 <= args.n <= 4096 or args.workers < 1:
         p.error(f"--n {args.n} must be in [16, 4096] and --workers {args.workers} >= 1")
     foods = sample_foods(args.n, TUNING_SEED)
+    args.work.mkdir(parents=True, exist_ok=True)
     results: dict[str, dict[str, dict[str, float]]] = {}
-    with ProcessPoolExecutor(args.workers) as pool:
-        for name, config in VARIANTS.items():
-            per_food = list(pool.map(food_errors, foods, [config] * len(foods), chunksize=8))
-            results[name] = {key: summarise([f[key] for f in per_food])
-                             for key in per_food[0]}
-            print(f"{name}: done", file=sys.stderr, flush=True)
+    for name, config in VARIANTS.items():
+        records, stopped = run_variant(name, config, foods, args.work, args.workers)
+        if stopped:
+            print(f"slip_probe: {stopped}; {len(records)} of {args.n} foods of {name!r} kept "
+                  f"in {args.work} (rerun the same command to finish)", file=sys.stderr)
+            return 130 if "interrupted" in stopped else 1
+        index = {f.index for f in foods}
+        mine = sorted((r for r in records if r["food"]["index"] in index),
+                      key=lambda r: r["food"]["index"])
+        results[name] = {key: summarise([r[key] for r in mine]) for key in READINGS}
+        print(f"{name}: done", file=sys.stderr, flush=True)
     summary: dict[str, Any] = {
         "meta": {"set": "tuning", "seed": TUNING_SEED, "n": args.n, "noise": NOISE,
                  "variants": {k: dataclasses.asdict(v) for k, v in VARIANTS.items()},

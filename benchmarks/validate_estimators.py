@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import inspect
 import json
 import math
 import os
@@ -35,7 +34,7 @@ import platform
 import signal
 import sys
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
@@ -46,6 +45,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from estimators.calibration import (
+    DEFAULT_ERROR_COVERAGE,
     ERROR_TARGETS,
     FORMS,
     QUADRATIC_MIN_FOODS,
@@ -408,17 +408,15 @@ ERROR_COVERAGE: dict[str, float] = {"precise": 0.975}
 
 def error_coverage(preset: str) -> float:
     """The coverage ``preset``'s error model is fitted for (:data:`ERROR_COVERAGE`)."""
-    default = inspect.signature(fit_error_model).parameters["coverage"].default
-    return ERROR_COVERAGE.get(preset, float(default))
+    return ERROR_COVERAGE.get(preset, DEFAULT_ERROR_COVERAGE)
 
 
 def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
                source: str = "", keep: set[int] | None = None, form: str = "linear",
-               coverage: float | None = None) -> Calibration:
+               coverage: float = DEFAULT_ERROR_COVERAGE) -> Calibration:
     """The calibration of ``form`` fitted on ``cal_records`` (a run without noise) and its
     error model on every run in ``runs`` (e.g. without and with noise), using only foods in
-    ``keep``; ``coverage`` as :func:`estimators.calibration.fit_error_model`'s (None: its
-    default)."""
+    ``keep``; ``coverage`` as :func:`estimators.calibration.fit_error_model`'s."""
     def use(r: dict[str, Any]) -> bool:
         return "crash" not in r and (keep is None or r["food"]["index"] in keep)
 
@@ -426,14 +424,13 @@ def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]
     cal = fit_calibration(_uncalibrated_foods(used), source=source,
                           diagnostics=[r.get("diagnostics") or {} for r in used], form=form)
     rows = [row for run in runs for i, row in error_rows([r for r in run if use(r)], cal)]
-    em = (fit_error_model(rows, source=source) if coverage is None
-          else fit_error_model(rows, source=source, coverage=coverage))
+    em = fit_error_model(rows, source=source, coverage=coverage)
     return dataclasses.replace(cal, error_model=em)
 
 
 def cross_validate(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
                    folds: int = 8, seed: int = 0, form: str = "linear",
-                   coverage: float | None = None) -> list[dict[str, Any]]:
+                   coverage: float = DEFAULT_ERROR_COVERAGE) -> list[dict[str, Any]]:
     """Held-out records of each run: the foods split into ``folds`` (seeded), each fold's
     records recomputed with the calibration and error model (``coverage``, as
     :func:`fit_models`) fitted on the other folds (:func:`held_out_record`)."""
@@ -571,35 +568,49 @@ def _run_foods(foods: list[Food], args: argparse.Namespace, calibrated: bool, js
                geometry: Geometry | None = None) -> str:
     """Measure ``foods`` on a process pool (``config`` and ``geometry`` replacing the preset's
     probe settings and the default end-effector, as in :func:`measure`), appending each
-    record to ``jsonl`` as it finishes.  Returns "" when all finished, else why it stopped:
-    Ctrl-C, SIGTERM or SIGHUP (handled alike), or a worker that died (the pool breaks instead
-    of hanging)."""
+    record to ``jsonl`` as it finishes (:func:`run_streamed`).  Returns "" when all
+    finished, else why it stopped."""
+    def report(i: int, rec: dict[str, Any]) -> None:
+        e = rec.get("error", {})
+        print(f"[{i}/{len(foods)}] food {rec['food']['index']} {rec['food']['shape']} "
+              + (rec["crash"] if "crash" in rec else " ".join(
+                  f"{k} {100 * e[k]:+.2f}%" for k in ("g1", "tau1", "mu", "K1"))), flush=True)
+
+    tasks = [(f, args.preset, args.noise, 7919 * f.index + 1, calibrated, config, geometry)
+             for f in foods]
+    return run_streamed(measure, tasks, args.workers, jsonl, records, report)
+
+
+def run_streamed(fn: Callable[..., dict[str, Any]], tasks: list[tuple[Any, ...]],
+                 workers: int, jsonl: Path, records: list[dict[str, Any]],
+                 report: Callable[[int, dict[str, Any]], None] | None = None) -> str:
+    """``fn(*task)`` for each of ``tasks`` on a pool of ``workers`` processes, each record
+    appended to ``records`` and to ``jsonl`` as it finishes (and passed to ``report`` with
+    its count).  Returns "" when all finished, else why it stopped: Ctrl-C, SIGTERM or
+    SIGHUP (handled alike), or a worker that died (the pool breaks instead of hanging); what
+    finished is in ``jsonl`` either way."""
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, _raise_interrupt)
-    pool = ProcessPoolExecutor(args.workers, initializer=_worker_signals)
+    pool = ProcessPoolExecutor(workers, initializer=_worker_signals)
     try:
         with jsonl.open("a") as log:
-            futures = [pool.submit(measure, f, args.preset, args.noise, 7919 * f.index + 1,
-                                   calibrated, config, geometry) for f in foods]
+            futures = [pool.submit(fn, *task) for task in tasks]
             for i, fut in enumerate(as_completed(futures), 1):
                 rec = fut.result()
                 records.append(rec)
                 log.write(json.dumps(rec, default=float) + "\n")
                 log.flush()
-                e = rec.get("error", {})
-                print(f"[{i}/{len(foods)}] food {rec['food']['index']} {rec['food']['shape']} "
-                      + (rec["crash"] if "crash" in rec else " ".join(
-                          f"{k} {100 * e[k]:+.2f}%" for k in ("g1", "tau1", "mu", "K1"))),
-                      flush=True)
+                if report is not None:
+                    report(i, rec)
     except KeyboardInterrupt as exc:
         return f"interrupted ({exc.args[0] if exc.args else 'SIGINT'})"
     except BrokenProcessPool:
         return "a worker process died"
     finally:
-        workers = list((getattr(pool, "_processes", None) or {}).values())
+        workers_alive = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
-        for proc in workers:
-            proc.terminate()  # a worker mid-food would otherwise run on after the stop
+        for proc in workers_alive:
+            proc.terminate()  # a worker mid-task would otherwise run on after the stop
     return ""
 
 

@@ -52,6 +52,7 @@ from scipy.optimize import least_squares, minimize
 from estimators.errors import EstimationError, instance, mapping
 
 __all__ = [
+    "DEFAULT_ERROR_COVERAGE",
     "ERROR_INPUTS",
     "ERROR_TARGETS",
     "EXTRA_FEATURES",
@@ -533,8 +534,13 @@ class ErrorModel:
 ErrorRow = tuple[str, float, Mapping[str, float], Mapping[str, float], Mapping[str, float]]
 
 
-def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0, coverage: float = 0.965,
-                    source: str = "") -> ErrorModel:
+# The share of the reference foods an error model's intervals are made to cover by default
+# (fit_error_model's ``coverage``).
+DEFAULT_ERROR_COVERAGE = 0.965
+
+
+def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0,
+                    coverage: float = DEFAULT_ERROR_COVERAGE, source: str = "") -> ErrorModel:
     """Fit an :class:`ErrorModel` on reference foods.
 
     Args:

@@ -1168,9 +1168,9 @@ PROBE_PRESETS: dict[str, ProbeConfig] = {
     # two half-spoons' envelopes less the sensor's noise.  On the 512 tuning foods,
     # uncalibrated, mu's |error| (median / 90th / 95th percentile): the measure probes' slip
     # 0.10 / 2.1 / 4.2 %; gap 0.1 mm with squeeze 0.1 0.15 / 2.0 / 3.5 %, 0.05 0.08 / 1.2 /
-    # 2.0 %, 0.03 0.07 / 0.9 / 1.5 %; 0.03 at 5 ms 0.05 / 0.8 / 1.3 %, at 2.5 ms 0.03 / 0.7 /
+    # 1.9 %, 0.03 0.07 / 0.9 / 1.5 %; 0.03 at 5 ms 0.05 / 0.8 / 1.3 %, at 2.5 ms 0.03 / 0.7 /
     # 1.3 %.  Slides of 0.2 or 0.45 s, 3 mm, a slower clamp or a longer hold moved the 95th
-    # percentile by 0.2 points either way.  The price is noise: with 1 % noise the smaller
+    # percentile by under 0.2 points either way.  The price is noise: with 1 % noise the smaller
     # forces read mu at 1.8 / 6.0 / 8.6 % (the measure slip 2.3 / 4.5 / 6.3 %).
     "precise": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade_denoised",
                            relaxation_repeats=7, contact_angle="camera",
