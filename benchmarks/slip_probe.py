@@ -7,8 +7,9 @@ into the side, and the normals of its contacts (the side's) lean from the blade'
 the clamp angle: in the blade's frame their push reads as friction, ``mu + angle (1 +
 mu^2)``.  A blade that starts closer to the food (``ProbeConfig.slip_gap``) and squeezes it
 less (``slip_strain``) closes by a smaller angle.  Each variant here is the ``measure``
-preset's slip probe with some of those settings changed; the last is the ``precise``
-preset's.  Each reads mu with the two half-spoons' envelopes (``per_blade``) and, where
+preset's slip probe with some of those settings changed; the last two are the ``precise``
+preset's, with one slide and with its three (0.3, 0.45 and 0.2 s, ``slip_repeats``) whose
+median is mu.  Each reads mu with the two half-spoons' envelopes (``per_blade``) and, where
 sensor noise is added, also less what the noise adds (``per_blade_denoised``).
 
     python benchmarks/slip_probe.py --n 512 --workers 2
@@ -40,7 +41,7 @@ import validate_estimators as ve
 from estimators import EstimationError
 from fetch_env.errors import ParameterClippedWarning
 from fetch_env.food_space import TUNING_SEED, Food, sample_foods
-from fetch_env.probes import PROBE_PRESETS, ProbeConfig, estimate_mu, slip_run
+from fetch_env.probes import PROBE_PRESETS, ProbeConfig, estimate_mu, slide_times, slip_run
 
 MEASURE = PROBE_PRESETS["measure"]
 PRECISE = PROBE_PRESETS["precise"]
@@ -52,7 +53,8 @@ VARIANTS: dict[str, ProbeConfig] = {
     "gap 0.1 mm, squeeze 0.03": dataclasses.replace(MEASURE, slip_gap=GAP, slip_strain=0.03),
     "gap 0.1 mm, squeeze 0.03, 5 ms": dataclasses.replace(
         MEASURE, slip_gap=GAP, slip_strain=0.03, slip_timestep=0.005),
-    "precise (gap 0.1 mm, squeeze 0.03, 2.5 ms)": PRECISE,
+    "gap 0.1 mm, squeeze 0.03, 2.5 ms": dataclasses.replace(PRECISE, slip_repeats=1),
+    "precise (gap 0.1 mm, squeeze 0.03, 2.5 ms, median of 3 slides)": PRECISE,
 }
 NOISE = 0.01
 # each food's readings of mu: the key of its error and the table's label
@@ -63,17 +65,19 @@ READINGS = {"noise0": "no noise", "noise_per_blade": "1 % noise",
 def food_errors(food: Food, config: ProbeConfig) -> dict[str, Any]:
     """mu's relative error on ``food`` (a record naming it by index): without noise, and
     with ``NOISE`` read per blade and per blade less the noise (noise drawn from the food's
-    index); NaN where no estimate."""
+    index, slide after slide), the median over ``config``'s slides; NaN where a slide gave
+    no estimate."""
     warnings.simplefilter("ignore", ParameterClippedWarning)
-    run = slip_run(food.piece(), config)
+    runs = [slip_run(food.piece(), dataclasses.replace(config, slide_time=t))
+            for t in slide_times(config)]
     out: dict[str, Any] = {"food": {"index": food.index}}
     for key, noise, envelope in (("noise0", 0.0, "per_blade"),
                                  ("noise_per_blade", NOISE, "per_blade"),
                                  ("noise_denoised", NOISE, "per_blade_denoised")):
+        rng = np.random.default_rng(food.index)
         try:
-            mu = estimate_mu(run, noise, np.random.default_rng(food.index),
-                             envelope=envelope)[0]
-            out[key] = mu / food.mu - 1
+            mus = [estimate_mu(run, noise, rng, envelope=envelope)[0] for run in runs]
+            out[key] = float(np.median(mus)) / food.mu - 1
         except EstimationError:
             out[key] = float("nan")
     return out

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import least_squares, minimize
@@ -58,6 +58,7 @@ __all__ = [
     "EXTRA_FEATURES",
     "FEATURES",
     "FORMS",
+    "OPTIONAL_ERROR_INPUTS",
     "QUADRATIC_MIN_FOODS",
     "TARGETS",
     "TARGET_EXTRA_FEATURES",
@@ -419,6 +420,19 @@ ERROR_INPUTS: dict[str, tuple[str, ...]] = {
     # the instantaneous stiffness K1 + K2, from which K1, K2 and B take their intervals
     "K_el": (*_FOOD_INPUTS, *_HOLD_INPUTS),
 }
+# Inputs an error model adds to a target's ERROR_INPUTS where every food it is fitted on has
+# them: the spread of a measurement the probes repeat (fetch_env.probes: the log-sd of g1 and
+# tau1 over the repeated relaxation clamps, half the log-range of mu over the repeated
+# slides).  Repeats of a chaotic measurement that agree say its error is small.
+# On the 512 tuning foods of the "precise" probes (seven clamps), 8-fold cross-validated at
+# 97.5 % coverage, the clamps' spread left g1's and tau1's coverage within 0.6 points and
+# cut the good foods (every error under 2 %) whose tau1 interval is wider than +-2.5 % from
+# 125 to 103 of 447 (with 1 % noise 73 to 62 of 107).
+OPTIONAL_ERROR_INPUTS: dict[str, tuple[str, ...]] = {
+    "g1": ("log_repeat_sd_log_g1",),
+    "tau1": ("log_repeat_sd_log_tau1",),
+    "mu": ("log_mu_trials",),
+}
 # The targets every error model has; the others (K_el) it has where it was fitted on
 # residuals of them (a model saved without one still loads, and leaves those intervals be).
 ERROR_TARGETS: tuple[str, ...] = ("g1", "tau1", "mu")
@@ -426,24 +440,39 @@ _INPUT_CLIP = 8.0  # standardized inputs beyond +-8 sds are held there (a wild d
 
 
 def error_inputs(target: str, shape: str, size: float, estimate: Mapping[str, float],
-                 diagnostics: Mapping[str, float]) -> np.ndarray:
-    """The raw inputs of :data:`ERROR_INPUTS` ``[target]`` for one probed food.
+                 diagnostics: Mapping[str, float], names: Sequence[str] | None = None
+                 ) -> np.ndarray:
+    """The raw inputs ``names`` (by default :data:`ERROR_INPUTS` ``[target]``; or that plus
+    its :data:`OPTIONAL_ERROR_INPUTS`) of ``target`` for one probed food.
 
     Raises:
-        EstimationError: as :func:`features`, or a diagnostic that is missing or NaN.
+        EstimationError: as :func:`features`, a diagnostic that is missing or NaN, or
+            ``names`` that are neither.
     """
     if not isinstance(target, str) or target not in ERROR_INPUTS:
         raise EstimationError(f"error model target must be one of {tuple(ERROR_INPUTS)}, "
                               f"got {target!r}")
+    names = ERROR_INPUTS[target] if names is None else tuple(names)
+    if names not in allowed_error_inputs(target):
+        raise EstimationError(f"error model inputs of {target!r} must be one of "
+                              f"{allowed_error_inputs(target)}, got {names!r}")
     mapping("diagnostics", diagnostics)
     x = dict(zip(FEATURES, features(shape, size, estimate), strict=True))
     out = []
-    for name in ERROR_INPUTS[target]:
+    for name in names:
         if name in x:
             out.append(float(x[name]))
             continue
         out.append(_diagnostic_value(name, diagnostics, "error model"))
     return np.array(out, dtype=float)
+
+
+def allowed_error_inputs(target: str) -> tuple[tuple[str, ...], ...]:
+    """The input lists an error model of ``target`` may have: :data:`ERROR_INPUTS`, and that
+    plus :data:`OPTIONAL_ERROR_INPUTS` where it has some."""
+    base = ERROR_INPUTS[target]
+    extra = OPTIONAL_ERROR_INPUTS.get(target, ())
+    return (base, base + extra) if extra else (base,)
 
 
 @dataclass(frozen=True)
@@ -456,6 +485,8 @@ class ErrorModel:
 
     Attributes, by target (every one of :data:`ERROR_TARGETS` and any other key of
     :data:`ERROR_INPUTS`): centre, spread, coefficients (intercept first), multiplier.
+    inputs: by target, the inputs where they are not :data:`ERROR_INPUTS`' (those plus
+    :data:`OPTIONAL_ERROR_INPUTS`, :func:`allowed_error_inputs`).
     n_foods, source: for the record.
     """
 
@@ -465,12 +496,17 @@ class ErrorModel:
     multiplier: Mapping[str, float]
     n_foods: int = 0
     source: str = ""
+    inputs: Mapping[str, Sequence[str]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        for name in ("centre", "spread", "coefficients", "multiplier"):
+        for name in ("centre", "spread", "coefficients", "multiplier", "inputs"):
             mapping(f"error model {name}", getattr(self, name))
+        for t, names in self.inputs.items():
+            if t not in ERROR_INPUTS or tuple(names) not in allowed_error_inputs(t):
+                raise EstimationError(f"error model inputs {names!r} of {t!r} are not one of "
+                                      f"{allowed_error_inputs(t) if t in ERROR_INPUTS else ()}")
         for t in self.targets:
-            n = len(ERROR_INPUTS.get(t, ()))
+            n = len(self.input_names(t))
             mult = self.multiplier.get(t)
             ok = (n > 0 and _finite_numbers(self.centre.get(t), n)
                   and _finite_numbers(self.spread.get(t), n)
@@ -489,6 +525,10 @@ class ErrorModel:
         return (*ERROR_TARGETS, *(t for t in ERROR_INPUTS
                                   if t not in ERROR_TARGETS and t in self.coefficients))
 
+    def input_names(self, target: str) -> tuple[str, ...]:
+        """The inputs of ``target``'s model."""
+        return tuple(self.inputs.get(target, ERROR_INPUTS.get(target, ())))
+
     def half_width(self, target: str, shape: str, size: float, estimate: Mapping[str, float],
                    diagnostics: Mapping[str, float]) -> float:
         """The 95 % half-width of ``log(estimate / truth)`` for one probed food.
@@ -499,14 +539,15 @@ class ErrorModel:
         if target not in self.targets:
             raise EstimationError(f"the error model has no {target!r} part (it has "
                                   f"{self.targets})")
-        z = (error_inputs(target, shape, size, estimate, diagnostics)
+        z = (error_inputs(target, shape, size, estimate, diagnostics,
+                          self.input_names(target))
              - np.asarray(self.centre[target])) / np.asarray(self.spread[target])
         b = np.asarray(self.coefficients[target])
         log_sd = float(b[0] + b[1:] @ np.clip(z, -_INPUT_CLIP, _INPUT_CLIP))
         return float(self.multiplier[target] * math.exp(min(log_sd, 5.0)))
 
     def to_dict(self) -> dict[str, object]:
-        return {"inputs": {t: list(ERROR_INPUTS[t]) for t in self.targets},
+        return {"inputs": {t: list(self.input_names(t)) for t in self.targets},
                 **{k: {t: (list(map(float, v)) if isinstance(v, Sequence) else float(v))
                        for t, v in getattr(self, k).items()}
                    for k in ("centre", "spread", "coefficients", "multiplier")},
@@ -517,18 +558,20 @@ class ErrorModel:
         """Read :meth:`to_dict`'s form (refusing one made for other inputs)."""
         inputs = data.get("inputs")
         if not (isinstance(inputs, Mapping) and set(ERROR_TARGETS) <= set(inputs)
-                and all(t in ERROR_INPUTS and list(v) == list(ERROR_INPUTS[t])
-                        for t, v in inputs.items())):
+                and all(t in ERROR_INPUTS and isinstance(v, Sequence)
+                        and tuple(v) in allowed_error_inputs(t) for t, v in inputs.items())):
             raise EstimationError(f"error model inputs {inputs!r} are not those of "
-                                  f"{ERROR_TARGETS} (and optionally K_el) in {ERROR_INPUTS}")
+                                  f"{ERROR_TARGETS} (and optionally K_el) in {ERROR_INPUTS} "
+                                  f"(with optionally {OPTIONAL_ERROR_INPUTS})")
         parts = {}
         for k in ("centre", "spread", "coefficients", "multiplier"):
             v = data.get(k)
             if not isinstance(v, Mapping):
                 raise EstimationError(f"error model {k} must be a mapping, got {v!r}")
             parts[k] = dict(v)
+        own = {t: tuple(v) for t, v in inputs.items() if tuple(v) != ERROR_INPUTS[t]}
         return cls(**parts, n_foods=int(data.get("n_foods", 0)),  # type: ignore[arg-type]
-                   source=str(data.get("source", "")))
+                   source=str(data.get("source", "")), inputs=own)
 
 
 ErrorRow = tuple[str, float, Mapping[str, float], Mapping[str, float], Mapping[str, float]]
@@ -569,10 +612,14 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0,
     parts: dict[str, dict[str, object]] = {k: {} for k in
                                            ("centre", "spread", "coefficients", "multiplier")}
     n_used = 0
-    for t, names in ERROR_INPUTS.items():
+    own: dict[str, tuple[str, ...]] = {}
+    for t in ERROR_INPUTS:
         if t not in ERROR_TARGETS and not any(t in row[4] for row in rows):
             continue
-        X, r = _error_rows(rows, t)
+        names = _fit_inputs(rows, t)
+        if names != ERROR_INPUTS[t]:
+            own[t] = names
+        X, r = _error_rows(rows, t, names)
         if len(r) < 3 * len(names):
             raise EstimationError(f"error model for {t!r} needs at least {3 * len(names)} foods "
                                   f"with its inputs, got {len(r)}")
@@ -585,21 +632,42 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0,
         parts["coefficients"][t] = list(b)
         parts["multiplier"][t] = float(np.quantile(np.abs(r) / sd, coverage))
         n_used = max(n_used, len(r))
-    return ErrorModel(**parts, n_foods=n_used, source=source)  # type: ignore[arg-type]
+    return ErrorModel(**parts, n_foods=n_used, source=source,  # type: ignore[arg-type]
+                      inputs=own)
 
 
-def _error_rows(rows: Sequence[ErrorRow], target: str) -> tuple[np.ndarray, np.ndarray]:
+def _fit_inputs(rows: Sequence[ErrorRow], target: str) -> tuple[str, ...]:
+    """``target``'s inputs with its :data:`OPTIONAL_ERROR_INPUTS` where every row that has
+    a residual of it and its :data:`ERROR_INPUTS` has them too, else :data:`ERROR_INPUTS`'."""
+    names = allowed_error_inputs(target)[-1]
+    for i, (shape, size, est, diag, resid) in enumerate(rows):
+        res = _number(mapping(f"rows[{i}] residual", resid).get(target, math.nan))
+        if not math.isfinite(res):
+            continue
+        try:
+            error_inputs(target, shape, size, est, diag)
+        except EstimationError:
+            continue  # left out of the fit whatever its inputs
+        try:
+            error_inputs(target, shape, size, est, diag, names)
+        except EstimationError:
+            return ERROR_INPUTS[target]
+    return names
+
+
+def _error_rows(rows: Sequence[ErrorRow], target: str, names: tuple[str, ...]
+                ) -> tuple[np.ndarray, np.ndarray]:
     X, r = [], []
     for i, (shape, size, est, diag, resid) in enumerate(rows):
         res = _number(mapping(f"rows[{i}] residual", resid).get(target, math.nan))
         if not math.isfinite(res):
             continue
         try:
-            X.append(error_inputs(target, shape, size, est, diag))
+            X.append(error_inputs(target, shape, size, est, diag, names))
         except EstimationError:
             continue
         r.append(res)
-    return np.array(X).reshape(len(r), len(ERROR_INPUTS[target])), np.array(r)
+    return np.array(X).reshape(len(r), len(names)), np.array(r)
 
 
 def _fit_laplace_scale(Z: np.ndarray, r: np.ndarray, ridge: float) -> np.ndarray:
