@@ -246,8 +246,8 @@ class ProbeConfig:
             their median.  Coulomb friction does not depend on the sliding speed, but where
             a stick-slipping piece's slips fall does, and a single slide's envelope is
             chaotic in it (a few per cent off on some foods); the median of three slides
-            misses by more than 1.4 % on about a third as many foods, and their spread
-            (diagnostic ``mu_trials``) says which foods to trust less.
+            misses by more than 1.4 % on fewer foods (the ``precise`` preset), and their
+            spread (diagnostic ``mu_trials``) says which foods to trust less.
         contact_angle: the first-contact angle that turns the held moment into K1, K2 and B
             through eq. 7 and times the clamp for g_1 and tau_1: "fit" (the full fit's,
             from the moment's rise) or "camera" (:func:`first_contact_angle`, the piece's
@@ -1252,10 +1252,11 @@ PROBE_PRESETS: dict[str, ProbeConfig] = {
     #
     # Which foods a single slide misses is chaotic (a slide of another speed misses others),
     # so the probe slides three times, over 0.3, 0.45 and 0.2 s, and takes the median
-    # (ProbeConfig.slip_repeats): on the 512 tuning foods, from the three one-slide runs,
-    # 19 -> 8 foods past 1.4 % and a 95th percentile of 1.3 -> 1.0 %.  The slides' spread
-    # (diagnostic mu_trials, an input of the error model) says which foods to trust: the 297
-    # whose slides agreed within 0.1 % were all within 0.7 %.
+    # (ProbeConfig.slip_repeats): on the 512 tuning foods, uncalibrated, mu's |error| went
+    # from 0.03 / 0.7 / 1.3 % (one slide) to 0.04 / 0.6 / 1.0 %, foods past 1.4 % from 19
+    # to 14, the worst from 4.8 to 3.4 %; with 1 % noise from 1.80 / 6.0 / 8.6 % to 1.64 /
+    # 4.6 / 5.7 %.  The slides' spread (diagnostic mu_trials, an input of the error model)
+    # says which foods to trust: the 302 whose slides agreed within 0.1 % were within 1.7 %.
     "precise": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade_denoised",
                            relaxation_repeats=7, contact_angle="camera",
                            relaxation_timestep=0.001, relaxation_impratio=1e4,
