@@ -195,6 +195,6 @@ def test_estimate_says_which_probes_and_calibration_it_applied(
     cal = PROBE_CALIBRATIONS["measure"]
     said = f"{cal.form}, fitted on {cal.n_foods} reference foods"
     printed = capsys.readouterr().out
-    line = f"probes: measure (1 relaxation clamp, fit contact angle); calibration: {said}"
+    line = f"probes: measure (1 relaxation clamp, 1 slide, fit contact angle); calibration: {said}"
     assert line in printed
     assert json.loads(out.read_text())["details"]["settings"]["calibration"] == said

@@ -385,9 +385,10 @@ def print_report(r: ProbeEstimate) -> None:
     settings = r.details.get("settings", {})
     if "calibration" in settings:
         config = settings["config"]
-        clamps = config["relaxation_repeats"]
+        clamps, slides = config["relaxation_repeats"], config.get("slip_repeats", 1)
         print(f"probes: {settings['probes']} ({clamps} relaxation "
-              f"clamp{'s' if clamps > 1 else ''}, {config['contact_angle']} contact angle); "
+              f"clamp{'s' if clamps > 1 else ''}, {slides} slide{'s' if slides > 1 else ''}, "
+              f"{config['contact_angle']} contact angle); "
               f"calibration: {settings['calibration'] or 'none'}")
     if "truth_K" in r.details:
         d = r.details["truth_K"]
