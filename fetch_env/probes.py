@@ -82,7 +82,7 @@ from estimators import (
     estimate_three_step,
 )
 from estimators.calibration import ERROR_TARGETS, Calibration
-from estimators.uncertainty import DRIFT_DIAGNOSTICS, hold_with_intervals, log_interval
+from estimators.uncertainty import DRIFT_DIAGNOSTICS, Z95, hold_with_intervals, log_interval
 from estimators.uncertainty import drift_diagnostics as uncertainty_drift
 from fetch_env.controller import (
     PHASE_CODE,
@@ -814,11 +814,13 @@ def _mu_sd_log(mu: float, est: Any, envelope: float, noise_share: float = 0.0) -
 def repeat_strains(config: ProbeConfig) -> list[float]:
     """The squeezes of the relaxation clamps: ``strain`` first, then alternately below and
     above it by ``repeat_strain_step`` of it, ``strain * (1, 1 - s, 1 + s, 1 - 2 s, ...)``."""
-    out = []
-    for j in range(config.relaxation_repeats):
-        k, sign = (j + 1) // 2, (-1.0 if j % 2 else 1.0)
-        out.append(config.strain * (1.0 + sign * k * config.repeat_strain_step))
-    return out
+    return [config.strain * (1.0 - m * config.repeat_strain_step)
+            for m in _alternating_steps(config.relaxation_repeats)]
+
+
+def _alternating_steps(n: int) -> list[int]:
+    """``n`` signed step counts of repeats around a first setting: 0, 1, -1, 2, -2, ..."""
+    return [(j + 1) // 2 * (1 if j % 2 else -1) for j in range(n)]
 
 
 def _relaxation_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | None,
@@ -967,11 +969,8 @@ def slide_times(config: ProbeConfig) -> list[float]:
     """The durations of the slip probe's slides: ``slide_time`` first, then alternately
     slower and faster by :data:`SLIP_REPEAT_TIME_RATIO`, ``slide_time * (1, r, 1 / r, r^2,
     1 / r^2, ...)``."""
-    out = []
-    for j in range(config.slip_repeats):
-        k, sign = (j + 1) // 2, (1 if j % 2 else -1)
-        out.append(config.slide_time * SLIP_REPEAT_TIME_RATIO ** (sign * k))
-    return out
+    return [config.slide_time * SLIP_REPEAT_TIME_RATIO ** m
+            for m in _alternating_steps(config.slip_repeats)]
 
 
 @dataclass
@@ -1039,7 +1038,7 @@ def _median_of_slides(fits: list[_SlideFit]) -> _SlideFit:
     if len(fits) == 1:
         return _SlideFit(mu, nearest.warnings, nearest.interval, diagnostics)
     lo, hi = nearest.interval
-    sd = math.hypot(math.log(hi / lo) / (2 * 1.96), float(np.std(np.log(mus), ddof=1)))
+    sd = math.hypot(math.log(hi / lo) / (2 * Z95), float(np.std(np.log(mus), ddof=1)))
     return _SlideFit(mu, nearest.warnings, log_interval(mu, sd), diagnostics)
 
 
@@ -1254,9 +1253,10 @@ PROBE_PRESETS: dict[str, ProbeConfig] = {
     # so the probe slides three times, over 0.3, 0.45 and 0.2 s, and takes the median
     # (ProbeConfig.slip_repeats): on the 512 tuning foods, uncalibrated, mu's |error| went
     # from 0.03 / 0.7 / 1.3 % (one slide) to 0.04 / 0.6 / 1.0 %, foods past 1.4 % from 19
-    # to 14, the worst from 4.8 to 3.4 %; with 1 % noise from 1.80 / 6.0 / 8.6 % to 1.64 /
-    # 4.6 / 5.7 %.  The slides' spread (diagnostic mu_trials, an input of the error model)
-    # says which foods to trust: the 302 whose slides agreed within 0.1 % were within 1.7 %.
+    # to 14, the worst from 15 to 3.4 %; with 1 % noise from 1.80 / 6.0 / 8.6 % to 1.50 /
+    # 4.5 / 5.6 % (benchmarks/slip_probe.py).  The slides' spread (diagnostic mu_trials, an
+    # input of the error model) says which foods to trust: the 302 whose slides agreed within
+    # 0.1 % were within 1.7 %.
     "precise": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade_denoised",
                            relaxation_repeats=7, contact_angle="camera",
                            relaxation_timestep=0.001, relaxation_impratio=1e4,

@@ -19,6 +19,7 @@ from estimators.calibration import (
     fit_error_model,
 )
 from estimators.errors import EstimationError
+from estimators.uncertainty import Z95
 from fetch_env.errors import InvalidParameterError
 from fetch_env.food_space import sample_foods
 from fetch_env.probes import (
@@ -63,9 +64,9 @@ def test_the_median_slide_sets_mu_and_the_spread_widens_its_interval() -> None:
     assert_allclose(out.diagnostics["mu_trials"], 0.5 * math.log(0.44 / 0.39), rtol=1e-12)
     assert_allclose(out.diagnostics["mu_gap"], 0.03, rtol=1e-12)
     spread = np.std(np.log([0.40, 0.44, 0.39]), ddof=1)
-    expected = math.hypot(0.02 / 1.96, spread) * 1.96
-    assert_allclose(math.log(out.interval[1] / out.mu), expected, rtol=1e-4)
-    assert_allclose(math.log(out.mu / out.interval[0]), expected, rtol=1e-4)
+    expected = math.hypot(0.02 / Z95, spread) * Z95
+    assert_allclose(math.log(out.interval[1] / out.mu), expected, rtol=1e-9)
+    assert_allclose(math.log(out.mu / out.interval[0]), expected, rtol=1e-9)
 
 
 def test_one_slide_is_its_own_estimate_with_no_spread() -> None:
