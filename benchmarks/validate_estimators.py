@@ -347,7 +347,8 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool, form: str = "li
     records = [d["records"] for d in data]
     if check:
         held_out = cross_validate(records[0], records, form=form,
-                                  coverage=error_coverage(preset))
+                                  coverage=error_coverage(preset),
+                                  reliable_half_width=RELIABLE_HALF_WIDTHS.get(preset))
         for run, held in zip(runs, held_out, strict=True):
             del held["records"]
             print(table(held, f"{run.name}, 8-fold cross-validation"))
@@ -357,7 +358,8 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool, form: str = "li
               f"{meta['n']} foods, preset {preset})")
     try:
         cal = fit_models(records[0], records, source=source, form=form,
-                         coverage=error_coverage(preset))
+                         coverage=error_coverage(preset),
+                         reliable_half_width=RELIABLE_HALF_WIDTHS.get(preset))
     except EstimationError as exc:
         raise SystemExit(f"validate_estimators: {exc}") from None
     table_ = json.loads(CALIBRATION_FILE.read_text()) if CALIBRATION_FILE.exists() else {}
@@ -411,12 +413,27 @@ def error_coverage(preset: str) -> float:
     return ERROR_COVERAGE.get(preset, DEFAULT_ERROR_COVERAGE)
 
 
+# The widest 95 % intervals with which a measurement counts as reliable, by preset (its error
+# model's ``reliable_half_width``; elsewhere fetch_env.probes.RELIABLE_HALF_WIDTH, 2.5 % for
+# each).  The precise probes' error model tells the foods its probes miss apart well enough
+# for g1 and mu to allow +-5 %; tau1 keeps +-2.5 %.  Chosen on their 512 tuning foods, 8-fold
+# cross-validated (fold seeds 0-2): no food with an error over 5 % called reliable, with no
+# noise the narrowest such food 1.09-1.13 times past its width, and with 1 % noise 1.47-1.62
+# times; foods with every error under 2 % called unreliable 24-25 % (with 1 % noise 73 %),
+# against 34-36 % (83-86 %) at 2.5 % for all three.  g1 and mu at 4 %: 27 % (76-79 %);
+# tau1 at 2 %: 32-33 % (79-82 %).
+RELIABLE_HALF_WIDTHS: dict[str, dict[str, float]] = {
+    "precise": {"g1": 0.05, "tau1": 0.025, "mu": 0.05}}
+
+
 def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
                source: str = "", keep: set[int] | None = None, form: str = "linear",
-               coverage: float = DEFAULT_ERROR_COVERAGE) -> Calibration:
+               coverage: float = DEFAULT_ERROR_COVERAGE,
+               reliable_half_width: dict[str, float] | None = None) -> Calibration:
     """The calibration of ``form`` fitted on ``cal_records`` (a run without noise) and its
     error model on every run in ``runs`` (e.g. without and with noise), using only foods in
-    ``keep``; ``coverage`` as :func:`estimators.calibration.fit_error_model`'s."""
+    ``keep``; ``coverage`` and ``reliable_half_width`` as
+    :func:`estimators.calibration.fit_error_model`'s."""
     def use(r: dict[str, Any]) -> bool:
         return "crash" not in r and (keep is None or r["food"]["index"] in keep)
 
@@ -424,23 +441,28 @@ def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]
     cal = fit_calibration(_uncalibrated_foods(used), source=source,
                           diagnostics=[r.get("diagnostics") or {} for r in used], form=form)
     rows = [row for run in runs for i, row in error_rows([r for r in run if use(r)], cal)]
-    em = fit_error_model(rows, source=source, coverage=coverage)
+    em = fit_error_model(rows, source=source, coverage=coverage,
+                         reliable_half_width=reliable_half_width)
     return dataclasses.replace(cal, error_model=em)
 
 
 def cross_validate(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
                    folds: int = 8, seed: int = 0, form: str = "linear",
-                   coverage: float = DEFAULT_ERROR_COVERAGE) -> list[dict[str, Any]]:
+                   coverage: float = DEFAULT_ERROR_COVERAGE,
+                   reliable_half_width: dict[str, float] | None = None
+                   ) -> list[dict[str, Any]]:
     """Held-out records of each run: the foods split into ``folds`` (seeded), each fold's
-    records recomputed with the calibration and error model (``coverage``, as
-    :func:`fit_models`) fitted on the other folds (:func:`held_out_record`)."""
+    records recomputed with the calibration and error model (``coverage`` and
+    ``reliable_half_width``, as :func:`fit_models`) fitted on the other folds
+    (:func:`held_out_record`)."""
     index = sorted({r["food"]["index"] for r in cal_records})
     fold_of = dict(zip(np.random.default_rng(seed).permutation(index),
                        np.arange(len(index)) % folds, strict=True))
     out: list[list[dict[str, Any]]] = [[] for _ in runs]
     for k in range(folds):
         keep = {i for i, f in fold_of.items() if f != k}
-        model = fit_models(cal_records, runs, keep=keep, form=form, coverage=coverage)
+        model = fit_models(cal_records, runs, keep=keep, form=form, coverage=coverage,
+                           reliable_half_width=reliable_half_width)
         for j, run in enumerate(runs):
             out[j] += [held_out_record(r, model) for r in run
                        if "crash" not in r and fold_of.get(r["food"]["index"]) == k]

@@ -180,11 +180,15 @@ def features(shape: str, size: float, estimate: Mapping[str, float],
 def _diagnostic_value(name: str, diagnostics: Mapping[str, object], user: str) -> float:
     """A diagnostic by ``name``; a "log_" name that is not itself a diagnostic is the log of
     the positive diagnostic it names, held within [1e-3, 1e3] ("log_1-r2_clamp": of 1 - the
-    clamp fit's R^2); values are held within +-1e3.
+    clamp fit's R^2); values are held within +-1e3.  "log_X>K" is a hinge, how far log X is
+    above log K (0 below it: ``max(0, log(X / K))``).
 
     Raises:
         EstimationError: the diagnostic is missing or NaN (``user`` names who needed it).
     """
+    if ">" in name:
+        inner, knee = name.rsplit(">", 1)
+        return max(0.0, _diagnostic_value(inner, diagnostics, user) - math.log(float(knee)))
     take_log = name not in diagnostics and name.startswith("log_")
     key = name.removeprefix("log_") if take_log else name
     if key == "1-r2_clamp":
@@ -428,9 +432,18 @@ ERROR_INPUTS: dict[str, tuple[str, ...]] = {
 # 97.5 % coverage, the clamps' spread left g1's and tau1's coverage within 0.6 points and
 # cut the good foods (every error under 2 %) whose tau1 interval is wider than +-2.5 % from
 # 125 to 103 of 447 (with 1 % noise 73 to 62 of 107).
+# The clamps' spread also enters as a hinge at 3 % ("log_X>0.03", max(0, log(X / 0.03))):
+# a food's error hardly grows with the spread below a few per cent and grows fast above it
+# (tuning foods, tau1's median |error| 0.2-0.9 % for each doubling of the spread up to 6 %,
+# 2.9 % beyond, where its 90th percentile is 21 %), which one log-linear term cannot follow.
+# On the same foods (8-fold, fold seeds 0-2) it cut the good foods with a tau1 interval
+# wider than +-2.5 % from 102-112 to 66-67 of 451 (with 1 % noise from 68-71 to 42-53 of
+# 118-120), and g1's from 68-75 to 61-66, coverage unchanged within 0.6 points; hinges at
+# 1 and 3 %, 2 and 5 % or 1, 3 and 6 % did no better, and one on mu's slides' spread (at
+# 0.3 and 1 %, or at 1 %) no better for mu.
 OPTIONAL_ERROR_INPUTS: dict[str, tuple[str, ...]] = {
-    "g1": ("log_repeat_sd_log_g1",),
-    "tau1": ("log_repeat_sd_log_tau1",),
+    "g1": ("log_repeat_sd_log_g1", "log_repeat_sd_log_g1>0.03"),
+    "tau1": ("log_repeat_sd_log_tau1", "log_repeat_sd_log_tau1>0.03"),
     "mu": ("log_mu_trials",),
 }
 # The targets every error model has; the others (K_el) it has where it was fitted on
@@ -469,10 +482,11 @@ def error_inputs(target: str, shape: str, size: float, estimate: Mapping[str, fl
 
 def allowed_error_inputs(target: str) -> tuple[tuple[str, ...], ...]:
     """The input lists an error model of ``target`` may have: :data:`ERROR_INPUTS`, and that
-    plus :data:`OPTIONAL_ERROR_INPUTS` where it has some."""
+    plus a leading part of its :data:`OPTIONAL_ERROR_INPUTS` (so a model fitted before an
+    optional input was added still loads); the last is what a new fit takes."""
     base = ERROR_INPUTS[target]
     extra = OPTIONAL_ERROR_INPUTS.get(target, ())
-    return (base, base + extra) if extra else (base,)
+    return tuple(base + extra[:k] for k in range(len(extra) + 1))
 
 
 @dataclass(frozen=True)
@@ -487,6 +501,11 @@ class ErrorModel:
     :data:`ERROR_INPUTS`): centre, spread, coefficients (intercept first), multiplier.
     inputs: by target, the inputs where they are not :data:`ERROR_INPUTS`' (those plus
     :data:`OPTIONAL_ERROR_INPUTS`, :func:`allowed_error_inputs`).
+    reliable_half_width: by target, the widest relative half-width of its 95 % interval
+        with which a measurement still counts as reliable, where the model was fitted with
+        its own (chosen on the reference foods: how narrow an interval must be to exclude
+        the foods the probes missed depends on how well the model tells them apart); the
+        probes' default elsewhere (``fetch_env.probes.RELIABLE_HALF_WIDTH``).
     n_foods, source: for the record.
     """
 
@@ -497,10 +516,13 @@ class ErrorModel:
     n_foods: int = 0
     source: str = ""
     inputs: Mapping[str, Sequence[str]] = field(default_factory=dict)
+    reliable_half_width: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        for name in ("centre", "spread", "coefficients", "multiplier", "inputs"):
+        for name in ("centre", "spread", "coefficients", "multiplier", "inputs",
+                     "reliable_half_width"):
             mapping(f"error model {name}", getattr(self, name))
+        _check_reliable_half_width(self.reliable_half_width)
         for t, names in self.inputs.items():
             if t not in ERROR_INPUTS or tuple(names) not in allowed_error_inputs(t):
                 raise EstimationError(f"error model inputs {names!r} of {t!r} are not one of "
@@ -547,11 +569,14 @@ class ErrorModel:
         return float(self.multiplier[target] * math.exp(min(log_sd, 5.0)))
 
     def to_dict(self) -> dict[str, object]:
+        own = ({"reliable_half_width": {t: float(w) for t, w in
+                                        self.reliable_half_width.items()}}
+               if self.reliable_half_width else {})
         return {"inputs": {t: list(self.input_names(t)) for t in self.targets},
                 **{k: {t: (list(map(float, v)) if isinstance(v, Sequence) else float(v))
                        for t, v in getattr(self, k).items()}
                    for k in ("centre", "spread", "coefficients", "multiplier")},
-                "n_foods": self.n_foods, "source": self.source}
+                **own, "n_foods": self.n_foods, "source": self.source}
 
     @classmethod
     def from_dict(cls, data: Mapping[str, object]) -> ErrorModel:
@@ -570,8 +595,22 @@ class ErrorModel:
                 raise EstimationError(f"error model {k} must be a mapping, got {v!r}")
             parts[k] = dict(v)
         own = {t: tuple(v) for t, v in inputs.items() if tuple(v) != ERROR_INPUTS[t]}
+        widths = data.get("reliable_half_width", {})
+        if not isinstance(widths, Mapping):
+            raise EstimationError(f"error model reliable_half_width must be a mapping, got "
+                                  f"{widths!r}")
         return cls(**parts, n_foods=int(data.get("n_foods", 0)),  # type: ignore[arg-type]
-                   source=str(data.get("source", "")), inputs=own)
+                   source=str(data.get("source", "")), inputs=own,
+                   reliable_half_width=dict(widths))
+
+
+def _check_reliable_half_width(widths: Mapping[str, float]) -> None:
+    """Refuse widths (:attr:`ErrorModel.reliable_half_width`) of an unknown target or
+    outside (0, 1)."""
+    for t, w in mapping("error model reliable_half_width", widths).items():
+        if t not in ERROR_TARGETS or not _finite_numbers([w], 1) or not 0 < w < 1:
+            raise EstimationError(f"error model reliable_half_width of {t!r} must be a "
+                                  f"target of {ERROR_TARGETS} and in (0, 1), got {w!r}")
 
 
 ErrorRow = tuple[str, float, Mapping[str, float], Mapping[str, float], Mapping[str, float]]
@@ -583,7 +622,8 @@ DEFAULT_ERROR_COVERAGE = 0.965
 
 
 def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0,
-                    coverage: float = DEFAULT_ERROR_COVERAGE, source: str = "") -> ErrorModel:
+                    coverage: float = DEFAULT_ERROR_COVERAGE, source: str = "",
+                    reliable_half_width: Mapping[str, float] | None = None) -> ErrorModel:
     """Fit an :class:`ErrorModel` on reference foods.
 
     Args:
@@ -600,14 +640,17 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0,
             tau1 / mu 91.6 / 91.2 / 96.1 % without noise and 93.6 / 93.2 / 91.4 % with 1 %
             noise; 0.965 gave 93.2 / 92.4 / 97.3 % and 96.0 / 96.0 / 93.4 % (ridge 1; 3 and
             10 moved each by under 1.2 points).
+        reliable_half_width: the model's own :attr:`ErrorModel.reliable_half_width`, if any.
 
     Raises:
-        EstimationError: fewer usable foods for a target than three times its inputs.
+        EstimationError: fewer usable foods for a target than three times its inputs, or a
+            ``reliable_half_width`` as :class:`ErrorModel` refuses.
     """
     _positive_real("ridge", ridge, allow_zero=True)
     _positive_real("coverage", coverage)
     if coverage > 1:
         raise EstimationError(f"coverage must be in (0, 1], got {coverage!r}")
+    _check_reliable_half_width(reliable_half_width or {})
     rows = _records("rows", rows, 5)
     parts: dict[str, dict[str, object]] = {k: {} for k in
                                            ("centre", "spread", "coefficients", "multiplier")}
@@ -633,7 +676,7 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0,
         parts["multiplier"][t] = float(np.quantile(np.abs(r) / sd, coverage))
         n_used = max(n_used, len(r))
     return ErrorModel(**parts, n_foods=n_used, source=source,  # type: ignore[arg-type]
-                      inputs=own)
+                      inputs=own, reliable_half_width=dict(reliable_half_width or {}))
 
 
 def _fit_inputs(rows: Sequence[ErrorRow], target: str) -> tuple[str, ...]:

@@ -125,7 +125,10 @@ CLAMP_WEIGHT = 0.3  # full fit: clamp residuals against the hold (docs/reproduci
 # none of 33 (1 % noise) have intervals that narrow (15 of 77 at 3.5 %).  What is left after
 # the calibration is a per-food bias (the contact's compliance, the plate, the bulge) that
 # the diagnostics predict only roughly, so an interval that must cover it cannot be narrow;
-# a flag that never calls a 5 % miss reliable is then rarely True.
+# a flag that never calls a 5 % miss reliable is then rarely True.  A calibration's error
+# model may carry its own widths, chosen on its own tuning foods
+# (estimators.calibration.ErrorModel.reliable_half_width; the "precise" probes', see
+# benchmarks/validate_estimators.py RELIABLE_HALF_WIDTHS).
 RELIABLE_HALF_WIDTH = 0.025
 # The probes' systematic uncertainty (sd of the log estimate, beyond what each trace reveals),
 # by parameter: for each tuning food of the validation harness (benchmarks/
@@ -354,16 +357,19 @@ class ProbeOutcome:
     @property
     def reliable(self) -> bool:
         """Both probes gave estimates, and the 95 % intervals of g1, tau1 and mu are each
-        within ``RELIABLE_HALF_WIDTH`` of the estimate (with a calibration's error model,
-        intervals that include the per-food error it predicts)."""
+        within ``RELIABLE_HALF_WIDTH`` of the estimate, or the widths the calibration's
+        error model was fitted with (``details["reliable_half_width"]``,
+        :func:`apply_calibration`; with an error model the intervals include the per-food
+        error it predicts)."""
         if not (self.visco_valid and self.friction_valid):
             return False
+        widths = self.details.get("reliable_half_width") or {}
         for name in ("g1", "tau1", "mu"):
             lo, hi = self.intervals.get(name, (math.nan, math.nan))
             v = self.estimates[name]
             if not (math.isfinite(lo) and math.isfinite(hi) and v > 0):
                 return False
-            if max(hi / v - 1.0, 1.0 - lo / v) > RELIABLE_HALF_WIDTH:
+            if max(hi / v - 1.0, 1.0 - lo / v) > widths.get(name, RELIABLE_HALF_WIDTH):
                 return False
         return True
 
@@ -1049,8 +1055,10 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     The intervals of K1, K2, B move with the estimates.  Where the calibration has an error
     model (:class:`estimators.calibration.ErrorModel`), the 95 % intervals of g1, tau1 and
     mu are its ``exp(+-half_width)`` around the calibrated estimate, from the probes'
-    diagnostics in ``out.details["diagnostics"]`` (NaN where one is missing), and
-    ``details["error_half_width"]`` keeps the half-widths.
+    diagnostics in ``out.details["diagnostics"]`` (NaN where one is missing),
+    ``details["error_half_width"]`` keeps the half-widths, and
+    ``details["reliable_half_width"]`` the model's own widths for :attr:`ProbeOutcome.
+    reliable`, where it has them.
     """
     require_type("calibration", calibration, Calibration, "a Calibration")
     require_type("out", out, ProbeOutcome, "a ProbeOutcome")
@@ -1090,6 +1098,8 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     for k, width in _interval_half_widths(widths, est["g1"]).items():
         out.intervals[k] = _log_width_interval(est[k], width)
     out.details["error_half_width"] = widths
+    if model.reliable_half_width:
+        out.details["reliable_half_width"] = dict(model.reliable_half_width)
 
 
 _VISCO_SPRINGS = ("K1", "K2", "B")

@@ -24,7 +24,12 @@ from benchmarks.relaxation_contact import table as contact_table  # noqa: E402
 from benchmarks.second_clamp import COMBINED  # noqa: E402
 from benchmarks.second_clamp import table as second_clamp_table  # noqa: E402
 from benchmarks.slip_probe import table as slip_table  # noqa: E402
-from benchmarks.validate_estimators import cross_validate, error_coverage, table  # noqa: E402
+from benchmarks.validate_estimators import (  # noqa: E402
+    RELIABLE_HALF_WIDTHS,
+    cross_validate,
+    error_coverage,
+    table,
+)
 from fetch_env.env_scenes import BLOCK_CALIBRATION_SEED  # noqa: E402
 from fetch_env.food_space import REPORTING_SEED, TUNING_SEED  # noqa: E402
 from fetch_env.probes import PROBE_CALIBRATIONS  # noqa: E402
@@ -95,12 +100,12 @@ reporting runs say how well they hold on other foods:
   tau1; for tau1 also how far a linear drift fitted with the hold's exponential moves g1 and
   tau1, a per-trace measure of the contact's creep; for K1 + K2 the fitted decay time over
   the hold's span and the clamp fit's R^2), which the probes then divide out:
-  `python benchmarks/validate_estimators.py --preset precise --form quadratic
+  `python benchmarks/validate_estimators.py --preset precise
   --fit-calibration docs/data/validation/tuning_precise_uncal_noise0.json
   docs/data/validation/tuning_precise_uncal_noise0.01.json`.  Each preset has its own: the
-  `precise` one is quadratic in those features (their pairwise products too,
-  `estimators.calibration.design`), fitted on 512 tuning foods (its error model on those
-  and on 256 with 1 % noise); the `repeated` one is quadratic too, fitted on 2048; the
+  `precise` one is linear in those features, fitted on 512 tuning foods (its error model
+  on those and on 256 with 1 % noise); the `repeated` one is quadratic (their pairwise
+  products too, `--form quadratic`, `estimators.calibration.design`), fitted on 2048; the
   `measure` one is
   linear, fitted on 256 (`--preset measure`, its two tuning runs; the environments use it,
   so it stays as their observations were measured, fitted before the truth of the 10
@@ -113,10 +118,19 @@ reporting runs say how well they hold on other foods:
   likelihood on the tuning foods without and with 1 % noise, and scaled to cover 96.5 % of
   them, 97.5 % for the `precise` probes, whose mu is exact on most foods and a few per cent
   off on a few, more often with noise (`benchmarks.validate_estimators.ERROR_COVERAGE`;
-  cross-validated on the tuning foods: about 95 % on foods it was not fitted on);
-* `fetch_env.probes.RELIABLE_HALF_WIDTH` (2.5 %): about the widest 95 % interval that calls
-  no tuning food with a g1, tau1 or mu error over 5 % reliable, cross-validated (the
-  narrowest such food's half-width moves with how the folds fall: 2.2-5.0 % without noise).
+  cross-validated on the tuning foods: about 95 % on foods it was not fitted on); where
+  the probes repeat a measurement on every food (the `precise` probes' seven clamps and
+  three slides) the repeats' spread is an input too, for g1 and tau1 also as a hinge at 3 %
+  (`estimators.calibration.OPTIONAL_ERROR_INPUTS`: their errors hardly grow with the
+  spread below a few per cent and fast above it);
+* how narrow the intervals must be for `reliable`: `fetch_env.probes.RELIABLE_HALF_WIDTH`
+  (2.5 % for each of g1, tau1 and mu), about the widest 95 % interval that calls no tuning
+  food with an error over 5 % reliable, cross-validated (the narrowest such food's
+  half-width moves with how the folds fall: 2.2-5.0 % without noise); the `precise`
+  probes' error model tells those foods apart well enough to carry its own, 5 % for g1
+  and mu and 2.5 % for tau1 (`benchmarks.validate_estimators.RELIABLE_HALF_WIDTHS`,
+  `ErrorModel.reliable_half_width`; cross-validated, fold seeds 0-2: the narrowest such
+  food 1.09-1.13 times past its width without noise, 1.47-1.62 times with 1 % noise).
 
 Intervals of g1, tau1 and mu: `exp(+-half_width)` around the calibrated estimate, the
 half-width from the error model.  Those of K1, K2, B: with the `precise` and `repeated`
@@ -127,9 +141,11 @@ autocorrelation, the estimates' change when the hold window moves, and a systema
 (`fetch_env.probes.PROBE_SYSTEMATIC_SD`) in quadrature on the log scale
 (`estimators.uncertainty`), which covers K1 on nearly every food with intervals of about
 +-30 %.  `reliable` is True only where the intervals of g1, tau1 and mu are each within
-+-2.5 %: the per-food error left after the calibration is predicted only roughly, so the
-flag that never calls a 5 % miss reliable is rarely True, also on foods the probe measured
-within 2 %.
+those widths: the per-food error left after the calibration is predicted only roughly, so
+the flag that never calls a 5 % miss reliable is False on many foods the probe measured
+within 2 % (with the `precise` probes about a quarter of them without noise, three
+quarters with 1 % noise, where mu's error is mostly the noise's and no diagnostic tells
+which foods it missed).
 
 Each run: `python benchmarks/validate_estimators.py --set SET --n 64 --workers 2
 --preset precise|repeated|measure [--noise 0.01] --out docs/data/validation`; the records, a
@@ -200,8 +216,10 @@ def cross_validated_runs(stems: tuple[str, ...], form: str = "linear"
     if not all(p.exists() for p in paths):
         return []
     runs = [json.loads(p.read_text()) for p in paths]
+    preset = runs[0]["meta"]["preset"]
     held = cross_validate(runs[0]["records"], [r["records"] for r in runs], form=form,
-                          coverage=error_coverage(runs[0]["meta"]["preset"]))
+                          coverage=error_coverage(preset),
+                          reliable_half_width=RELIABLE_HALF_WIDTHS.get(preset))
     return list(zip(runs, held, strict=True))
 
 
