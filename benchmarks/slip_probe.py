@@ -10,7 +10,8 @@ less (``slip_strain``) closes by a smaller angle.  Each variant here is the ``me
 preset's slip probe with some of those settings changed; the last two are the ``precise``
 preset's, with one slide and with its three (0.3, 0.45 and 0.2 s, ``slip_repeats``) whose
 median is mu.  Each reads mu with the two half-spoons' envelopes (``per_blade``) and, where
-sensor noise is added, also less what the noise adds (``per_blade_denoised``).
+sensor noise is added, also less what the noise adds (``per_blade_denoised``) and refined to
+the level the ratio slips at (``per_blade_slipping``, the ``precise`` preset's).
 
     python benchmarks/slip_probe.py --n 512 --workers 2
 
@@ -59,21 +60,23 @@ VARIANTS: dict[str, ProbeConfig] = {
 NOISE = 0.01
 # each food's readings of mu: the key of its error and the table's label
 READINGS = {"noise0": "no noise", "noise_per_blade": "1 % noise",
-            "noise_denoised": "1 % noise, denoised"}
+            "noise_denoised": "1 % noise, denoised",
+            "noise_slipping": "1 % noise, slipping level"}
 
 
 def food_errors(food: Food, config: ProbeConfig) -> dict[str, Any]:
     """mu's relative error on ``food`` (a record naming it by index): without noise, and
-    with ``NOISE`` read per blade and per blade less the noise (noise drawn from the food's
-    index, slide after slide), the median over ``config``'s slides; NaN where a slide gave
-    no estimate."""
+    with ``NOISE`` read per blade, per blade less the noise and at the slipping level (noise
+    drawn from the food's index, slide after slide), the median over ``config``'s slides;
+    NaN where a slide gave no estimate."""
     warnings.simplefilter("ignore", ParameterClippedWarning)
     runs = [slip_run(food.piece(), dataclasses.replace(config, slide_time=t))
             for t in slide_times(config)]
     out: dict[str, Any] = {"food": {"index": food.index}}
     for key, noise, envelope in (("noise0", 0.0, "per_blade"),
                                  ("noise_per_blade", NOISE, "per_blade"),
-                                 ("noise_denoised", NOISE, "per_blade_denoised")):
+                                 ("noise_denoised", NOISE, "per_blade_denoised"),
+                                 ("noise_slipping", NOISE, "per_blade_slipping")):
         rng = np.random.default_rng(food.index)
         try:
             mus = [estimate_mu(run, noise, rng, envelope=envelope)[0] for run in runs]
@@ -88,7 +91,8 @@ def run_variant(name: str, config: ProbeConfig, foods: list[Food], work: Path, w
     """The records of ``config``'s slip probe on ``foods``, streamed to a file in ``work``
     named by the settings (records of other settings are never resumed into it) and resumed
     from it; and why it stopped ("" when every food finished)."""
-    settings = json.dumps(dataclasses.asdict(config), sort_keys=True)
+    # the readings are part of the tag: records without one of them are never resumed
+    settings = json.dumps([dataclasses.asdict(config), sorted(READINGS)], sort_keys=True)
     tag = hashlib.sha256(settings.encode()).hexdigest()[:10]
     path = work / f"{name.split(' (')[0].replace(' ', '_').replace(',', '')}-{tag}.jsonl"
     done = ve._done_indices(path)

@@ -437,8 +437,8 @@ ERROR_INPUTS: dict[str, tuple[str, ...]] = {
 # (tuning foods, tau1's median |error| 0.2-0.9 % for each doubling of the spread up to 6 %,
 # 2.9 % beyond, where its 90th percentile is 21 %), which one log-linear term cannot follow.
 # On the same foods (8-fold, fold seeds 0-2) it cut the good foods with a tau1 interval
-# wider than +-2.5 % from 102-112 to 66-67 of 451 (with 1 % noise from 68-71 to 42-53 of
-# 118-120), and g1's from 68-75 to 61-66, coverage unchanged within 0.6 points; hinges at
+# wider than +-2.5 % from 102-111 to 66-67 of 451 (with 1 % noise from 108-111 to 72-82 of
+# 170-173), and g1's from 68-75 to 61-66, coverage unchanged within 0.6 points; hinges at
 # 1 and 3 %, 2 and 5 % or 1, 3 and 6 % did no better, and one on mu's slides' spread (at
 # 0.3 and 1 %, or at 1 %) no better for mu.
 OPTIONAL_ERROR_INPUTS: dict[str, tuple[str, ...]] = {
