@@ -100,13 +100,15 @@ def test_the_envelope_setting_is_validated() -> None:
         ProbeConfig(slip_gap=float("nan"))
 
 
-def test_without_noise_the_denoised_envelope_reads_as_per_blade() -> None:
-    """Where the forces before contact are steady (no sensor noise) nothing is taken off."""
+@pytest.mark.parametrize("envelope", ["per_blade_denoised", "per_blade_slipping"])
+def test_without_noise_the_noise_aware_envelopes_read_as_per_blade(envelope: str) -> None:
+    """Where the forces before contact are steady (no sensor noise) nothing is taken off,
+    and the slipping level is the plain envelope."""
     left, right = np.full(N_SLIDE, MU / 2), np.full(N_SLIDE, MU / 2)
     left[12::6] = MU
     right[15::6] = MU
     run = synthetic_slip(left, right)
-    np.testing.assert_allclose(estimate_mu(run, envelope="per_blade_denoised")[0],
+    np.testing.assert_allclose(estimate_mu(run, envelope=envelope)[0],
                                estimate_mu(run, envelope="per_blade")[0], rtol=1e-12)
 
 
@@ -123,15 +125,6 @@ def test_the_denoised_envelope_takes_off_what_noise_adds() -> None:
             errs.append(mu / MU - 1)
     assert np.mean(errors["per_blade"]) > 0.015
     assert abs(np.mean(errors["per_blade_denoised"])) < 0.005
-
-
-def test_without_noise_the_slipping_level_reads_as_per_blade() -> None:
-    left, right = np.full(N_SLIDE, MU / 2), np.full(N_SLIDE, MU / 2)
-    left[12::6] = MU
-    right[15::6] = MU
-    run = synthetic_slip(left, right)
-    np.testing.assert_allclose(estimate_mu(run, envelope="per_blade_slipping")[0],
-                               estimate_mu(run, envelope="per_blade")[0], rtol=1e-12)
 
 
 def _stick_slip(rng: np.random.Generator) -> np.ndarray:
