@@ -612,7 +612,12 @@ def run_streamed(fn: Callable[..., dict[str, Any]], tasks: list[tuple[Any, ...]]
     appended to ``records`` and to ``jsonl`` as it finishes (and passed to ``report`` with
     its count).  Returns "" when all finished, else why it stopped: Ctrl-C, SIGTERM or
     SIGHUP (handled alike), or a worker that died (the pool breaks instead of hanging); what
-    finished is in ``jsonl`` either way."""
+    finished is in ``jsonl`` either way.  While the pool shuts down, further stop signals are
+    ignored (``timeout`` and a process-group kill send one to the main process more than
+    once, and a second one raising during the pool's exit printed a traceback); the
+    handlers in place before are restored on return."""
+    stops = (signal.SIGTERM, signal.SIGHUP, signal.SIGINT)
+    before = {sig: signal.getsignal(sig) for sig in stops}
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, _raise_interrupt)
     pool = ProcessPoolExecutor(workers, initializer=_worker_signals)
@@ -631,10 +636,15 @@ def run_streamed(fn: Callable[..., dict[str, Any]], tasks: list[tuple[Any, ...]]
     except BrokenProcessPool:
         return "a worker process died"
     finally:
+        for sig in stops:
+            signal.signal(sig, signal.SIG_IGN)
         workers_alive = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
         for proc in workers_alive:
             proc.terminate()  # a worker mid-task would otherwise run on after the stop
+            proc.join()
+        for sig, handler in before.items():
+            signal.signal(sig, handler)
     return ""
 
 
