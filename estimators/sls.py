@@ -264,7 +264,7 @@ def moment_components(
     Returns:
         ``(S, V)`` in m^2 (N m per N/m): ``S`` the equilibrium-spring part, ``V`` the Maxwell-arm
         part; both zero before contact. ``M`` is linear in ``K1`` and ``K2`` once ``lam`` is fixed,
-        which makes both the fits and the step-3 root find cheap.
+        which makes both the fits and step 3 (K2 from the peak, in closed form) cheap.
     """
     _check_clamp(geometry, theta_1, theta_d, omega)
     lam, t_start = real("lam", lam), real("t_start", t_start)

@@ -345,3 +345,41 @@ def test_drift_fit_from_a_given_plain_fit_is_the_same_fit() -> None:
         assert getattr(given, name) == getattr(scratch, name), name
     np.testing.assert_array_equal(given.cov, scratch.cov)
     assert given.drift < 0.0
+
+
+def _bounded_trf_fit(s: np.ndarray, y: np.ndarray, p0: tuple[float, ...]) -> np.ndarray:
+    """The reference: eq. 6 fitted by scipy's bounded trust-region solver alone (rate >= 0)."""
+    from scipy.optimize import curve_fit
+
+    def model(x: np.ndarray, m_inf: float, a: float, lam: float) -> np.ndarray:
+        return m_inf + a * np.exp(-lam * x)
+
+    popt, _ = curve_fit(model, s, y, p0=p0, bounds=((-np.inf, -np.inf, 0.0), np.inf),
+                        method="trf", x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    return popt
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_hold_fit_is_the_bounded_least_squares_fit(seed: int) -> None:
+    """The hold fit (Levenberg-Marquardt first) lands on the bounded solver's minimum: noisy
+    holds over the tau1 range, rate to 1e-6 relative and M_inf, A to 1e-6 of M(t_d)."""
+    rng = np.random.default_rng(seed)
+    tau1 = float(rng.uniform(0.5, 10.0))
+    s = np.linspace(0.0, 20.0, 500)
+    y = 0.05 + 0.03 * np.exp(-s / tau1) + 3e-4 * rng.standard_normal(s.size)
+    hf = fit_hold_relaxation(2.0 + s, y, 2.0 - 1e-9)
+    ref = _bounded_trf_fit(s, y, (y[-1], y[0] - y[-1], 1.0 / tau1))
+    assert hf.lam == pytest.approx(ref[2], rel=1e-6)
+    assert_allclose([hf.M_inf, hf.A], ref[:2], atol=1e-6 * 0.08)
+
+
+def test_hold_fit_keeps_the_rate_non_negative_on_a_growing_moment() -> None:
+    """A held moment that grows along a saturating exponential: the unbounded optimum has a
+    negative rate, so the fit falls back to the bounded solver, keeps the rate >= 0 and
+    says the hold does not relax."""
+    s = np.linspace(0.0, 10.0, 400)
+    y = 0.05 - 0.02 * np.exp(-s / 2.0)
+    y = y[::-1].copy()  # rises slowly, then fast: the best unbounded rate is negative
+    hf = fit_hold_relaxation(2.0 + s, y, 2.0 - 1e-9)
+    assert hf.lam >= 0.0
+    assert not hf.relaxes

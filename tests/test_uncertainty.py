@@ -32,7 +32,9 @@ def test_exact_traces_recover_the_parameters_with_tight_intervals(g1: float, tau
     assert_allclose([est.K1, est.K2, est.B], [params.K1, params.K2, params.B], rtol=1e-3)
     for name, true in (("g1", g1), ("tau1", tau1), ("K1", params.K1)):
         lo, hi = out.intervals[name]
-        assert lo <= true <= hi
+        # An exact exponential is fitted to round-off, so the interval may be as narrow as
+        # round-off: it must reach the truth to within 1e-12 relative.
+        assert lo <= true * (1 + 1e-12) and hi >= true * (1 - 1e-12)
         assert hi / lo - 1 < 1e-3  # an exact exponential: no noise, no window dependence
 
 
