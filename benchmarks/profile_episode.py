@@ -199,7 +199,11 @@ def main(argv: list[str] | None = None) -> int:
                    help="only rewrite docs/benchmarks.md's table from FILE (a --json output)")
     args = p.parse_args(argv)
     if args.docs is not None:
-        write_docs(json.loads(args.docs.read_text()))
+        try:
+            data = json.loads(args.docs.read_text())
+            write_docs(data)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            p.error(f"--docs {args.docs}: not a profile written by --json ({exc})")
         return 0
     unknown = [i for i in args.ids if i not in gym.registry]
     if unknown:

@@ -40,6 +40,10 @@ class SimulationDivergedError(RuntimeError):
         self.scene = scene
         self.action = action
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # pickled whole (a probe run's error comes back from a worker process)
+        return (type(self), (self.args[0], self.scene, self.action))
+
     def one_line(self) -> str:
         """A single line for the command line: what diverged and with which action."""
         act = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"

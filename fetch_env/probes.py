@@ -102,6 +102,7 @@ from fetch_env.errors import (
     require_type,
 )
 from fetch_env.layouts import Piece
+from fetch_env.parallel import Task, outcome, run_ahead
 from fetch_env.scene import Geometry, Scene, initial_state
 from fetch_env.spaces import VISCO_NAMES
 
@@ -882,23 +883,43 @@ def _alternating_steps(n: int) -> list[int]:
     return [(j + 1) // 2 * (1 if j % 2 else -1) for j in range(n)]
 
 
+def _relaxation_simulator(piece: Piece, config: ProbeConfig,
+                          geometry: Geometry | None) -> FetchSimulator:
+    """The simulator of ``piece`` alone under ``config``'s relaxation settings."""
+    return FetchSimulator((piece,), geometry, impratio=config.relaxation_impratio,
+                          timestep=config.relaxation_timestep,
+                          relaxation_contact_ratio=config.relaxation_contact_ratio)
+
+
+def _relaxation_clamp(sim: FetchSimulator, config: ProbeConfig, strain: float) -> SimResult:
+    """One relaxation clamp of ``sim``'s piece, squeezed by ``strain`` past first contact,
+    its hold time-scaled past ``HOLD_SETTLE``."""
+    theta_d = probe_angle(sim, strain, "relaxation")
+    action = FetchAction(theta_d=theta_d, omega=config.omega, hold=config.hold,
+                         settle=config.settle)
+    return sim.run("relaxation", action,
+                   time_scale=TimeScale(config.hold_time_scale, realtime=HOLD_SETTLE,
+                                        growth=config.hold_time_growth))
+
+
+def relaxation_run(piece: Piece, config: ProbeConfig, geometry: Geometry | None,
+                   strain: float) -> SimResult:
+    """One relaxation clamp of ``piece`` at ``strain`` in a simulator of its own (a probe
+    worker's task, :func:`run_probes`'s ``workers``)."""
+    return _relaxation_clamp(_relaxation_simulator(piece, config, geometry), config, strain)
+
+
 def _relaxation_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | None,
                       noise: float, rng: np.random.Generator, out: ProbeOutcome,
-                      keep_traces: bool, drift_diagnostics: bool = True) -> None:
+                      keep_traces: bool, drift_diagnostics: bool = True,
+                      ahead: list[Any] | None = None) -> None:
     """Run the relaxation probe on ``piece`` (``config.relaxation_repeats`` clamps) and put
     its estimates into ``out`` (with the hold's drift diagnostics where
-    ``drift_diagnostics``); the first clamp's action, geometry and traces are kept."""
-    sim = FetchSimulator((piece,), geometry, impratio=config.relaxation_impratio,
-                         timestep=config.relaxation_timestep,
-                         relaxation_contact_ratio=config.relaxation_contact_ratio)
-    runs = []
-    for strain in repeat_strains(config):
-        theta_d = probe_angle(sim, strain, "relaxation")
-        action = FetchAction(theta_d=theta_d, omega=config.omega, hold=config.hold,
-                             settle=config.settle)
-        runs.append(sim.run("relaxation", action,
-                            time_scale=TimeScale(config.hold_time_scale, realtime=HOLD_SETTLE,
-                                                 growth=config.hold_time_growth)))
+    ``drift_diagnostics``); the first clamp's action, geometry and traces are kept.
+    ``ahead``: the clamps already run (:func:`fetch_env.parallel.run_ahead`), in order."""
+    sim = _relaxation_simulator(piece, config, geometry)
+    runs = ([_relaxation_clamp(sim, config, strain) for strain in repeat_strains(config)]
+            if ahead is None else [outcome(r) for r in ahead])
     out.details["relaxation_action"] = runs[0].action.to_dict()
     out.details["relaxation_geometry"] = runs[0].geometry  # L and theta_0 for the SLS
     out.details["relaxation_max_log_strain"] = max(
@@ -1043,14 +1064,17 @@ class _SlideFit:
 
 
 def _slip_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | None, noise: float,
-                rng: np.random.Generator, out: ProbeOutcome, keep_traces: bool) -> None:
+                rng: np.random.Generator, out: ProbeOutcome, keep_traces: bool,
+                ahead: list[Any] | None = None) -> None:
     """Run the induced-slip probe on ``piece`` (``config.slip_repeats`` slides) and put its
-    estimate of mu into ``out``; the first slide's action and traces are kept."""
+    estimate of mu into ``out``; the first slide's action and traces are kept.  ``ahead``:
+    the slides already run (:func:`fetch_env.parallel.run_ahead`), in order."""
     fits: list[_SlideFit] = []
     failures: list[str] = []
     for j, slide_time in enumerate(slide_times(config)):
         try:
-            res = slip_run(piece, dataclasses.replace(config, slide_time=slide_time), geometry)
+            res = (slip_run(piece, dataclasses.replace(config, slide_time=slide_time), geometry)
+                   if ahead is None else outcome(ahead[j]))
         except SimulationDivergedError as exc:
             failures.append(str(exc))
             continue
@@ -1189,7 +1213,7 @@ _MAX_LOG_HALF_WIDTH = 700.0  # math.exp overflows a float just above 709
 
 def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometry | None = None,
                keep_traces: bool = False, noise: float = 0.0, seed: int = 0,
-               calibration: Calibration | None = None) -> ProbeOutcome:
+               calibration: Calibration | None = None, workers: int = 1) -> ProbeOutcome:
     """Run both probes on the centre piece and estimate its parameters, with 95 % intervals.
 
     ``noise`` adds white sensor noise (sd as a share of each trace's peak) from a generator
@@ -1198,11 +1222,21 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     errors, with the uncorrected values kept in ``details["uncalibrated"]``.  Never raises
     for a failed estimate or a diverged probe: the affected parameters are NaN, the
     ``*_valid`` flag is False and ``warnings`` says why.
+
+    ``workers`` > 1 runs the probes' simulations (every relaxation clamp and slide) at once
+    on that many processes (:func:`fetch_env.parallel.run_ahead`) before the fits: the same
+    estimates as ``workers=1``, sooner on a machine with cores to spare; the CPU times in
+    ``details`` are then this process's only.
+
+    Raises:
+        fetch_env.parallel.WorkerLostError: a worker process died mid-run.
     """
     require_finite("noise", noise)
     require(0.0 <= noise <= 0.5, "noise", noise, "in [0, 0.5]")
     require_int("seed", seed)
     require(seed >= 0, "seed", seed, ">= 0")
+    require_int("workers", workers)
+    require(workers >= 1, "workers", workers, ">= 1")
     require_type("calibration", calibration, Calibration | None, "a Calibration or None")
     _check_probe_args(None, config, geometry)
     wall, cpu = time.perf_counter(), time.process_time()
@@ -1217,8 +1251,11 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     # none is applied (a run that a calibration may be fitted on).
     drift = calibration is None or not set(DRIFT_DIAGNOSTICS).isdisjoint(
         calibration.feature_names)
-    relaxation = functools.partial(_relaxation_probe, drift_diagnostics=drift)
-    for name, probe in (("relaxation", relaxation), ("slip", _slip_probe)):
+    clamps, slides = (None, None) if workers == 1 else _runs_ahead(piece, config, geometry,
+                                                                    workers)
+    relaxation = functools.partial(_relaxation_probe, drift_diagnostics=drift, ahead=clamps)
+    slip = functools.partial(_slip_probe, ahead=slides)
+    for name, probe in (("relaxation", relaxation), ("slip", slip)):
         try:
             probe(piece, config, geometry, noise, rng, out, keep_traces)
         except (EstimationError, SimulationDivergedError, ArithmeticError) as exc:
@@ -1228,6 +1265,19 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     out.wall_time = time.perf_counter() - wall
     _add_cpu(out, "cpu_time", cpu)
     return out
+
+
+def _runs_ahead(piece: Piece, config: ProbeConfig, geometry: Geometry | None,
+                workers: int) -> tuple[list[Any], list[Any]]:
+    """Every relaxation clamp and slide of the probes, run at once on ``workers`` processes:
+    (the clamps, the slides), each a result or the error it raised."""
+    tasks: list[Task] = [(relaxation_run, (piece, config, geometry, strain))
+                         for strain in repeat_strains(config)]
+    tasks += [(slip_run, (piece, dataclasses.replace(config, slide_time=t), geometry))
+              for t in slide_times(config)]
+    results = run_ahead(tasks, workers)
+    n = config.relaxation_repeats
+    return results[:n], results[n:]
 
 
 def _add_cpu(out: ProbeOutcome, key: str, start: float) -> None:

@@ -55,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     from fetch_env.errors import InvalidParameterError, SimulationDivergedError
+    from fetch_env.parallel import WorkerLostError
 
     try:
         args = build_parser().parse_args(argv)
@@ -65,6 +66,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"food-fetch: error: {exc}", file=sys.stderr)
     except SimulationDivergedError as exc:
         print(f"food-fetch: error: {exc.one_line()}", file=sys.stderr)
+    except WorkerLostError as exc:
+        print(f"food-fetch: error: {exc}", file=sys.stderr)
     except KeyboardInterrupt:
         print("food-fetch: interrupted", file=sys.stderr)
         return 130

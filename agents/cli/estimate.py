@@ -29,6 +29,7 @@ from agents.cli.common import (
     add_food_options,
     finite,
     make_material,
+    positive_int,
     writable,
     write_json,
 )
@@ -215,7 +216,7 @@ def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any
     config = PROBE_PRESETS[preset]
     calibration = PROBE_CALIBRATIONS.get(preset)
     res = run_probes(pieces, config, noise=args.noise, seed=args.seed,
-                     calibration=calibration)
+                     calibration=calibration, workers=args.workers)
     keep = {"both": NAMES, "relaxation": NAMES[:5], "slip": ("mu",)}[args.probe]
     estimate = {k: res.estimates[k] if k in keep else math.nan for k in NAMES}
     interval = {k: res.intervals.get(k, (math.nan, math.nan)) for k in keep}
@@ -276,6 +277,9 @@ def run_estimate(args: argparse.Namespace) -> ProbeEstimate:
     material = make_material(args)
     pieces = (Piece(args.shape, args.size, material),)
     probes = which_probes(args)
+    if args.workers > 1 and probes not in ADAPTIVE_PROBES:
+        raise UsageError(f"food-fetch estimate: --workers {args.workers} applies to the "
+                         f"{', '.join(ADAPTIVE_PROBES)} probes, not to --probes {probes}")
     with reported_elsewhere():  # in the text and the JSON's "clipped" instead
         if probes in ADAPTIVE_PROBES:
             out = run_measure(args, pieces, material, probes)
@@ -501,6 +505,15 @@ def add_options(p: argparse.ArgumentParser) -> None:
         default=SLIP_DEFAULTS["slide_time"],
         metavar="S",
         help="duration of the induced slip [s] (default: 10)",
+    )
+    p.add_argument(
+        "--workers",
+        type=positive_int,
+        default=1,
+        metavar="N",
+        help="run the probes' simulations (the precise probes' seven clamps and three "
+        "slides) on N processes at once: the same numbers as with 1, sooner where cores "
+        "are free (default: 1)",
     )
     p.add_argument(
         "--json",
