@@ -160,6 +160,11 @@ def _covers(iv: Iterable[float] | None, true: float) -> bool | None:
     return bool(lo <= true <= hi)
 
 
+# What one food may cost one core [s]: the probes with their fits (a full estimate), and the
+# fits alone.
+SPEED_BARS: dict[str, float] = {"probes": 10.0, "fits": 0.05}
+
+
 def summarize(records: list[dict[str, Any]]) -> dict[str, Any]:
     """Accuracy, coverage and reliability over the records (soft foods only for the bars)."""
     ok = [r for r in records if "crash" not in r]
@@ -184,10 +189,13 @@ def summarize(records: list[dict[str, Any]]) -> dict[str, Any]:
     out["wall_probes_max"] = float(np.max(walls)) if walls else math.nan
     out["wall_fits_median"] = float(np.median(fits)) if fits else math.nan
     out["wall_fits_max"] = float(np.max(fits)) if fits else math.nan
-    for key in ("cpu_probes", "cpu_fits"):  # what a food costs one core, whatever the load
+    for key, bar in (("cpu_probes", SPEED_BARS["probes"]), ("cpu_fits", SPEED_BARS["fits"])):
+        # what a food costs one core, whatever the load; and how many miss the issue's bar
         values = [r[key] for r in ok if math.isfinite(r.get(key, math.nan))]
         out[f"{key}_median"] = float(np.median(values)) if values else math.nan
+        out[f"{key}_p95"] = float(np.percentile(values, 95)) if values else math.nan
         out[f"{key}_max"] = float(np.max(values)) if values else math.nan
+        out[f"{key}_over_bar"] = sum(v > bar for v in values)
     return out
 
 
@@ -234,11 +242,23 @@ def _speed_line(summary: dict[str, Any]) -> str:
             f"{1e3 * summary['wall_fits_max']:.1f} ms")
     if not math.isfinite(summary.get("cpu_fits_median", math.nan)):
         return f"{wall} (wall time, one core each)."
-    return (f"CPU time a food: probes median {summary['cpu_probes_median']:.2f} s, max "
-            f"{summary['cpu_probes_max']:.2f} s; fits (both estimators, intervals, "
-            f"calibration) median {1e3 * summary['cpu_fits_median']:.1f} ms, max "
-            f"{1e3 * summary['cpu_fits_max']:.1f} ms, a worker's first fit included. Wall "
-            f"time, as the machine was loaded: {wall}.")
+    if "cpu_fits_p95" not in summary:  # a summary written before the percentiles
+        return (f"CPU time a food: probes median {summary['cpu_probes_median']:.2f} s, max "
+                f"{summary['cpu_probes_max']:.2f} s; fits (both estimators, intervals, "
+                f"calibration) median {1e3 * summary['cpu_fits_median']:.1f} ms, max "
+                f"{1e3 * summary['cpu_fits_max']:.1f} ms, a worker's first fit included. "
+                f"Wall time, as the machine was loaded: {wall}.")
+    n = summary["n_foods"] - summary["n_crashed"]
+    return (f"CPU time a food: probes (with their fits) median "
+            f"{summary['cpu_probes_median']:.2f} s, 95th percentile "
+            f"{summary['cpu_probes_p95']:.2f} s, max {summary['cpu_probes_max']:.2f} s, "
+            f"{summary['cpu_probes_over_bar']} of {n} over {SPEED_BARS['probes']:g} s; fits "
+            f"(both estimators, intervals, calibration) median "
+            f"{1e3 * summary['cpu_fits_median']:.1f} ms, 95th percentile "
+            f"{1e3 * summary['cpu_fits_p95']:.1f} ms, max {1e3 * summary['cpu_fits_max']:.1f} "
+            f"ms, {summary['cpu_fits_over_bar']} of {n} over "
+            f"{1e3 * SPEED_BARS['fits']:g} ms, a worker's first fit included. Wall time, as "
+            f"the machine was loaded: {wall}.")
 
 
 def _write_atomic(path: Path, text: str) -> None:

@@ -58,6 +58,20 @@ def test_committed_summary_holds_what_the_docs_say(preset: str) -> None:
     assert s["reliability"]["over_5pct_flagged_reliable"] == 0
 
 
+def test_speed_summary_counts_the_foods_past_the_bars() -> None:
+    """The reporting run's speed figures recomputed from its records: the fits' median
+    under the 50 ms bar, and the counts past each bar what the records hold."""
+    records = REPORTS["precise"]["records"]
+    s = summarize(records)
+    probes = np.array([r["cpu_probes"] for r in records])
+    fits = np.array([r["cpu_fits"] for r in records])
+    assert s["cpu_probes_over_bar"] == int((probes > 10.0).sum())
+    assert s["cpu_fits_over_bar"] == int((fits > 0.05).sum())
+    assert_allclose([s["cpu_fits_p95"], s["cpu_probes_p95"]],
+                    [np.percentile(fits, 95), np.percentile(probes, 95)])
+    assert s["cpu_fits_median"] < 0.05
+
+
 def test_calibrate_returns_the_quantile_of_the_missing_sd() -> None:
     """Foods whose own intervals have sd 0.01 and that miss by 1.96 * (0.01 ... 0.20)
     need a systematic sd of sqrt(x^2 - 0.01^2); 95 % coverage takes its 95th percentile."""
