@@ -183,11 +183,6 @@ def table(data: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def write_docs(data: dict[str, Any], path: Path = DOCS) -> None:
-    """Replace the marked block of ``path`` with :func:`table` of ``data``."""
-    rewrite_block(path, BEGIN, END, table(data))
-
-
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--ids", nargs="+", default=list(DEFAULT_IDS))
@@ -200,10 +195,10 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.docs is not None:
         try:
-            data = json.loads(args.docs.read_text())
-            write_docs(data)
+            text = table(json.loads(args.docs.read_text()))
         except (OSError, ValueError, KeyError, TypeError) as exc:
             p.error(f"--docs {args.docs}: not a profile written by --json ({exc})")
+        rewrite_block(DOCS, BEGIN, END, text)
         return 0
     unknown = [i for i in args.ids if i not in gym.registry]
     if unknown:

@@ -196,6 +196,7 @@ def summarize(records: list[dict[str, Any]]) -> dict[str, Any]:
         out[f"{key}_p95"] = float(np.percentile(values, 95)) if values else math.nan
         out[f"{key}_max"] = float(np.max(values)) if values else math.nan
         out[f"{key}_over_bar"] = sum(v > bar for v in values)
+        out[f"{key}_n"] = len(values)
     return out
 
 
@@ -242,21 +243,20 @@ def _speed_line(summary: dict[str, Any]) -> str:
             f"{1e3 * summary['wall_fits_max']:.1f} ms")
     if not math.isfinite(summary.get("cpu_fits_median", math.nan)):
         return f"{wall} (wall time, one core each)."
-    if "cpu_fits_p95" not in summary:  # a summary written before the percentiles
+    if "cpu_fits_n" not in summary:  # a summary written before the percentiles
         return (f"CPU time a food: probes median {summary['cpu_probes_median']:.2f} s, max "
                 f"{summary['cpu_probes_max']:.2f} s; fits (both estimators, intervals, "
                 f"calibration) median {1e3 * summary['cpu_fits_median']:.1f} ms, max "
                 f"{1e3 * summary['cpu_fits_max']:.1f} ms, a worker's first fit included. "
                 f"Wall time, as the machine was loaded: {wall}.")
-    n = summary["n_foods"] - summary["n_crashed"]
     return (f"CPU time a food: probes (with their fits) median "
             f"{summary['cpu_probes_median']:.2f} s, 95th percentile "
             f"{summary['cpu_probes_p95']:.2f} s, max {summary['cpu_probes_max']:.2f} s, "
-            f"{summary['cpu_probes_over_bar']} of {n} over {SPEED_BARS['probes']:g} s; fits "
-            f"(both estimators, intervals, calibration) median "
-            f"{1e3 * summary['cpu_fits_median']:.1f} ms, 95th percentile "
+            f"{summary['cpu_probes_over_bar']} of {summary['cpu_probes_n']} over "
+            f"{SPEED_BARS['probes']:g} s; fits (both estimators, intervals, calibration) "
+            f"median {1e3 * summary['cpu_fits_median']:.1f} ms, 95th percentile "
             f"{1e3 * summary['cpu_fits_p95']:.1f} ms, max {1e3 * summary['cpu_fits_max']:.1f} "
-            f"ms, {summary['cpu_fits_over_bar']} of {n} over "
+            f"ms, {summary['cpu_fits_over_bar']} of {summary['cpu_fits_n']} over "
             f"{1e3 * SPEED_BARS['fits']:g} ms, a worker's first fit included. Wall time, as "
             f"the machine was loaded: {wall}.")
 

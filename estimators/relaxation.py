@@ -381,15 +381,23 @@ def _trf(tol: float) -> dict[str, Any]:
             "max_nfev": 200}
 
 
+# The least decay over the hold, rate * duration, at which _fit_decay keeps the unbounded
+# Levenberg-Marquardt fit (a hold counts as relaxing from 0.02, HoldFit.relaxes).
+LM_MIN_DECAY = 1e-3
+
+
 def _fit_decay(model: Any, jac: Any, s: NDArray[np.float64], y: NDArray[np.float64],
                p0: tuple[float, ...]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """``curve_fit`` of a decay ``model`` whose third parameter, the rate, must be >= 0.
 
-    MINPACK's Levenberg-Marquardt (unbounded) runs first and is kept where its rate is > 0:
-    an interior minimum of the unbounded problem is the bounded one's too, and on the probes'
-    holds it is about 5x faster than the bounded trust-region solver (its per-call overhead
-    dominates these 3-4 parameter fits) and agrees with it to ~1e-10 in the rate.  The bounded
-    ``trf`` solves the rest (a rate that LM drives negative, or an LM failure).
+    MINPACK's Levenberg-Marquardt (unbounded) runs first and is kept where its rate resolves
+    a decay over the hold (``rate * duration > LM_MIN_DECAY``): an interior minimum of the
+    unbounded problem is the bounded one's too, and on the probes' holds it is about 5x
+    faster than the bounded trust-region solver (its per-call overhead dominates these 3-4
+    parameter fits) and agrees with it to ~1e-8 in the rate.  The bounded ``trf`` solves the
+    rest: a rate that LM drives negative, an LM failure, and a nearly straight hold, where
+    LM may stop in the degenerate valley of a vanishing rate and a huge amplitude before the
+    minimum.
 
     Raises:
         RuntimeError, ValueError: as ``curve_fit``, where the bounded fit fails too.
@@ -398,7 +406,8 @@ def _fit_decay(model: Any, jac: Any, s: NDArray[np.float64], y: NDArray[np.float
     try:
         popt, pcov = curve_fit(model, s, y, p0=p0, jac=jac, method="lm", xtol=tol, ftol=tol,
                                gtol=0.0, maxfev=200)
-        if popt[2] > 0.0 and np.all(np.isfinite(popt)) and np.all(np.isfinite(pcov)):
+        if (popt[2] * s[-1] > LM_MIN_DECAY and np.all(np.isfinite(popt))
+                and np.all(np.isfinite(pcov))):
             return popt, pcov
     except (RuntimeError, ValueError):
         pass

@@ -120,6 +120,15 @@ def warn(records: Iterable[ClipRecord], suffix: str = "") -> None:
         warnings.warn(message(rec) + suffix, ParameterClippedWarning, stacklevel=_stacklevel())
 
 
+def rewarn(category: type[Warning], text: str) -> None:
+    """Warn ``text`` again, as this package warns (the user's line as its location): a
+    warning a worker process caught (:mod:`fetch_env.parallel`); a clipping one only where
+    :func:`reported_elsewhere` is not active here."""
+    if issubclass(category, ParameterClippedWarning) and _QUIET.get():
+        return
+    warnings.warn(text, category, stacklevel=_stacklevel())
+
+
 def warn_once(owner: Any, records: Iterable[ClipRecord], where: str) -> None:
     """Warn about the first record of each rule that ``owner`` (an env) has not warned about
     yet; later ones are only in ``where`` (e.g. ``info["clipped"]``)."""

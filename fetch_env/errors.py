@@ -41,8 +41,8 @@ class SimulationDivergedError(RuntimeError):
         self.action = action
 
     def __reduce__(self) -> tuple[Any, ...]:
-        # pickled whole (a probe run's error comes back from a worker process)
-        return (type(self), (self.args[0], self.scene, self.action))
+        # pickled whole, notes too (a probe run's error comes back from a worker process)
+        return (type(self), (self.args[0], self.scene, self.action), self.__dict__)
 
     def one_line(self) -> str:
         """A single line for the command line: what diverged and with which action."""

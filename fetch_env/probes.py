@@ -1253,6 +1253,7 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
         calibration.feature_names)
     clamps, slides = (None, None) if workers == 1 else _runs_ahead(piece, config, geometry,
                                                                     workers)
+    out.details["workers"] = workers
     relaxation = functools.partial(_relaxation_probe, drift_diagnostics=drift, ahead=clamps)
     slip = functools.partial(_slip_probe, ahead=slides)
     for name, probe in (("relaxation", relaxation), ("slip", slip)):

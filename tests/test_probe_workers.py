@@ -4,12 +4,22 @@ a dead worker said in one line."""
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import pickle
+import signal
+import threading
+import time
+import warnings
 
 import pytest
 
-from fetch_env.errors import InvalidParameterError, SimulationDivergedError
+from fetch_env.clipping import reported_elsewhere
+from fetch_env.errors import (
+    InvalidParameterError,
+    ParameterClippedWarning,
+    SimulationDivergedError,
+)
 from fetch_env.layouts import single_block
 from fetch_env.materials import Material
 from fetch_env.parallel import WorkerLostError, outcome, run_ahead
@@ -20,11 +30,12 @@ from tests.cli_helpers import assert_one_line_error, run_cli
 PIECES = single_block("ellipsoid", 0.012, Material(young=8e5, g1=0.35, tau1=1.2, mu=0.4))
 
 
-@pytest.mark.parametrize("noise", [0.0, 0.01])
-def test_workers_give_the_serial_estimates(noise: float) -> None:
+@pytest.mark.parametrize(("preset", "noise"),
+                         [("repeated", 0.0), ("repeated", 0.01), ("precise", 0.01)])
+def test_workers_give_the_serial_estimates(preset: str, noise: float) -> None:
     """Two workers: every estimate, interval, diagnostic and warning equal to the serial
     run's, bit for bit (each simulation is deterministic; the noise is drawn afterwards)."""
-    config, cal = PROBE_PRESETS["repeated"], PROBE_CALIBRATIONS["repeated"]
+    config, cal = PROBE_PRESETS[preset], PROBE_CALIBRATIONS[preset]
     serial = run_probes(PIECES, config, noise=noise, seed=4, calibration=cal)
     pooled = run_probes(PIECES, config, noise=noise, seed=4, calibration=cal, workers=2)
     assert pooled.estimates == serial.estimates
@@ -53,6 +64,79 @@ def _die(x: int) -> int:
     os._exit(3)
 
 
+def _warn_and_square(x: int) -> int:
+    warnings.warn("a value was clipped", ParameterClippedWarning, stacklevel=1)
+    return x * x
+
+
+def _fail(x: int) -> int:
+    raise ValueError(f"bad value {x}")
+
+
+def test_worker_warnings_are_raised_here_once() -> None:
+    """Warnings raised in the workers come back to this process, once per text; a clipping
+    warning stays silent where the caller reports clipping itself."""
+    tasks = [(_warn_and_square, (2,)), (_warn_and_square, (3,))]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert run_ahead(tasks, 2) == [4, 9]
+    assert [str(w.message) for w in caught] == ["a value was clipped"]
+    assert caught[0].category is ParameterClippedWarning
+    assert caught[0].filename == __file__  # the caller's line, as the package warns
+    with warnings.catch_warnings(record=True) as caught, reported_elsewhere():
+        warnings.simplefilter("always")
+        run_ahead(tasks, 2)
+    assert caught == []
+
+
+def test_a_worker_error_carries_its_traceback() -> None:
+    (result,) = run_ahead([(_fail, (5,)), (_square, (1,))], 2)[:1]
+    assert isinstance(result, ValueError) and str(result) == "bad value 5"
+    assert "in a probe worker process" in result.__notes__[0]
+    assert "_fail" in result.__notes__[0]
+
+
+def _in_a_daemon(queue: multiprocessing.Queue) -> None:  # type: ignore[type-arg]
+    queue.put(run_ahead([(_square, (2,)), (_square, (3,))], 2))
+
+
+def test_a_daemonic_process_runs_the_tasks_itself() -> None:
+    """A pool's worker (daemonic) may not start processes: there the tasks run serially."""
+    queue: multiprocessing.Queue = multiprocessing.get_context("fork").Queue()  # type: ignore[type-arg]
+    proc = multiprocessing.get_context("fork").Process(target=_in_a_daemon, args=(queue,),
+                                                        daemon=True)
+    proc.start()
+    assert queue.get(timeout=60) == [4, 9]
+    proc.join(timeout=60)
+    assert proc.exitcode == 0
+
+
+def _sleep(seconds: float) -> float:
+    time.sleep(seconds)
+    return seconds
+
+
+def test_sigterm_stops_the_pool_and_leaves_no_worker() -> None:
+    """SIGTERM while the workers run: ``KeyboardInterrupt`` here, every worker process
+    gone, the handler found put back."""
+    before = signal.getsignal(signal.SIGTERM)
+
+    def stop_once_the_workers_run() -> None:
+        deadline = time.monotonic() + 20.0
+        while not multiprocessing.active_children() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        time.sleep(0.2)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    threading.Thread(target=stop_once_the_workers_run, daemon=True).start()
+    start = time.monotonic()
+    with pytest.raises(KeyboardInterrupt, match="SIGTERM"):
+        run_ahead([(_sleep, (30.0,)), (_sleep, (30.0,)), (_sleep, (30.0,))], 2)
+    assert time.monotonic() - start < 10.0
+    assert multiprocessing.active_children() == []
+    assert signal.getsignal(signal.SIGTERM) is before
+
+
 def test_errors_come_back_in_their_place() -> None:
     """A task's error is returned in its place, whole (its scene and action too), and
     :func:`outcome` raises it; the other tasks' results are kept."""
@@ -66,8 +150,11 @@ def test_errors_come_back_in_their_place() -> None:
 
 
 def test_simulation_diverged_error_pickles_whole() -> None:
-    exc = pickle.loads(pickle.dumps(SimulationDivergedError("m", {"a": 1}, {"b": 2})))
-    assert (str(exc), exc.scene, exc.action) == ("m", {"a": 1}, {"b": 2})
+    exc = SimulationDivergedError("m", {"a": 1}, {"b": 2})
+    exc.add_note("where")
+    back = pickle.loads(pickle.dumps(exc))
+    assert (str(back), back.scene, back.action, back.__notes__) == ("m", {"a": 1}, {"b": 2},
+                                                                    ["where"])
 
 
 def test_a_dead_worker_is_one_clear_error() -> None:

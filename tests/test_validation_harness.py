@@ -15,7 +15,13 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from benchmarks.validate_estimators import calibrate, foods_of, measure, summarize
+from benchmarks.validate_estimators import (
+    _speed_line,
+    calibrate,
+    foods_of,
+    measure,
+    summarize,
+)
 from fetch_env.probes import PARAM_NAMES
 
 DATA = Path(__file__).resolve().parents[1] / "docs" / "data" / "validation"
@@ -59,17 +65,24 @@ def test_committed_summary_holds_what_the_docs_say(preset: str) -> None:
 
 
 def test_speed_summary_counts_the_foods_past_the_bars() -> None:
-    """The reporting run's speed figures recomputed from its records: the fits' median
-    under the 50 ms bar, and the counts past each bar what the records hold."""
-    records = REPORTS["precise"]["records"]
+    """The speed line counts the foods past the 10 s and 50 ms bars among those timed: a
+    crashed food and one without a CPU time are left out of both the count and its total."""
+    def food(probes: float, fits: float) -> dict[str, object]:
+        return {"error": dict.fromkeys(PARAM_NAMES, 0.001),
+                "covered": dict.fromkeys(PARAM_NAMES, True), "reliable": True,
+                "wall_probes": probes, "wall_fits": fits, "cpu_probes": probes,
+                "cpu_fits": fits}
+
+    records = [food(5.0, 0.02), food(12.0, 0.06), food(9.0, 0.03), food(11.0, 0.01),
+               food(math.nan, math.nan), {"crash": "diverged"}]
     s = summarize(records)
-    probes = np.array([r["cpu_probes"] for r in records])
-    fits = np.array([r["cpu_fits"] for r in records])
-    assert s["cpu_probes_over_bar"] == int((probes > 10.0).sum())
-    assert s["cpu_fits_over_bar"] == int((fits > 0.05).sum())
-    assert_allclose([s["cpu_fits_p95"], s["cpu_probes_p95"]],
-                    [np.percentile(fits, 95), np.percentile(probes, 95)])
-    assert s["cpu_fits_median"] < 0.05
+    assert (s["cpu_probes_over_bar"], s["cpu_probes_n"]) == (2, 4)
+    assert (s["cpu_fits_over_bar"], s["cpu_fits_n"]) == (1, 4)
+    line = _speed_line(s)
+    assert "max 12.00 s, 2 of 4 over 10 s" in line
+    assert "median 25.0 ms" in line and "1 of 4 over 50 ms" in line
+    committed = summarize(REPORTS["precise"]["records"])
+    assert committed["cpu_fits_median"] < 0.05  # the fits' bar, on the reporting foods
 
 
 def test_calibrate_returns_the_quantile_of_the_missing_sd() -> None:

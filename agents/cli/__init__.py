@@ -66,8 +66,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"food-fetch: error: {exc}", file=sys.stderr)
     except SimulationDivergedError as exc:
         print(f"food-fetch: error: {exc.one_line()}", file=sys.stderr)
-    except WorkerLostError as exc:
+    except WorkerLostError as exc:  # not the user's mistake: the machine's
         print(f"food-fetch: error: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("food-fetch: interrupted", file=sys.stderr)
         return 130

@@ -513,7 +513,7 @@ def add_options(p: argparse.ArgumentParser) -> None:
         metavar="N",
         help="run the probes' simulations (the precise probes' seven clamps and three "
         "slides) on N processes at once: the same numbers as with 1, sooner where cores "
-        "are free (default: 1)",
+        "are free; the JSON's CPU times are then this process's only (default: 1)",
     )
     p.add_argument(
         "--json",
