@@ -50,8 +50,8 @@ import fetch_env  # noqa: F401  (registers the ids)
 from agents.evaluate import _close_pool
 from benchmarks.bench_step_size import twin_of
 from benchmarks.readme_meta import meta, rewrite_block, write_json
-from benchmarks.validate_estimators import _raise_interrupt, _worker_signals
 from fetch_env.layouts import Piece
+from fetch_env.parallel import raise_interrupt, worker_signals
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "validation" / "quasi-static-holds.md"
@@ -252,7 +252,7 @@ def main(argv: list[str] | None = None) -> int:
     data: dict[str, Any] = {"meta": meta(), "seeds": list(args.seeds), "runs": runs[1:],
                             "summary": {}, "records": {}, "complete": False}
     for sig in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, _raise_interrupt)
+        signal.signal(sig, raise_interrupt)
     try:
         _measure(args, runs, data)
     except (KeyboardInterrupt, BrokenProcessPool) as exc:
@@ -269,7 +269,7 @@ def _measure(args: argparse.Namespace, runs: list[str], data: dict[str, Any]) ->
     rewritten atomically) holds every finished scene, in seed order, and each id's summary
     of them, whenever the run stops."""
     seeds = list(range(*args.seeds))
-    pool = ProcessPoolExecutor(args.workers, initializer=_worker_signals)
+    pool = ProcessPoolExecutor(args.workers, initializer=worker_signals)
     clean = False
     try:
         for env_id in args.ids:

@@ -50,7 +50,7 @@ from agents.evaluate import _close_pool  # noqa: E402
 from benchmarks.bench_quasi_static import seeded_twin  # noqa: E402
 from benchmarks.readme_meta import meta, rewrite_block, write_json  # noqa: E402
 from benchmarks.theta_sweep import LIFT_SPEED, OMEGA, seed_range  # noqa: E402
-from benchmarks.validate_estimators import _raise_interrupt, _worker_signals  # noqa: E402
+from fetch_env.parallel import raise_interrupt, worker_signals  # noqa: E402
 
 # The best constant clamp angle of each id on these tuning scenes (docs/data/theta_sweep/).
 BEST_THETA = {"FoodFetch-Block-v1": 0.05, "FoodFetch-Row-v1": 0.03,
@@ -188,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
         saved.append(True)
 
     for sig in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, _raise_interrupt)
+        signal.signal(sig, raise_interrupt)
     try:
         _roll_all(ids, args.seeds, args.workers, records, save)
     except (KeyboardInterrupt, BrokenProcessPool) as exc:
@@ -206,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
 def _roll_all(ids: list[str], seeds: range, workers: int,
               records: dict[str, list[dict[str, Any]]], save: Callable[[], None]) -> None:
     """Every id's scenes on a process pool, each kept (``save``) as it finishes."""
-    pool = cf.ProcessPoolExecutor(workers, initializer=_worker_signals)
+    pool = cf.ProcessPoolExecutor(workers, initializer=worker_signals)
     clean = False
     try:
         jobs = {pool.submit(roll_scene, i, s): i for i in ids for s in seeds}

@@ -40,6 +40,7 @@ from scipy import stats
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.readme_meta import meta, write_json
+from fetch_env.parallel import raise_interrupt
 
 AGENTS = ("random", "study", "model-based", "search")
 
@@ -90,10 +91,6 @@ def _run_to_end(cmd: list[str]) -> None:
         raise StoppedError("stopped", 130) from None
     if code != 0:
         raise StoppedError(f"food-fetch evaluate exited with code {code}", 1)
-
-
-def _raise_interrupt(signum: int, _frame: Any) -> None:
-    raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
 def paired_difference(a: list[float], b: list[float], level: float = 0.95) -> dict[str, Any]:
@@ -188,7 +185,7 @@ def main() -> int:
                    "run left one (default: none kept)")
     args = p.parse_args()
     for sig in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, _raise_interrupt)
+        signal.signal(sig, raise_interrupt)
     old = json.loads(args.out.read_text()) if args.out.exists() else {}
     results = dict(old.get("results", {}))
     for env_id in args.ids:

@@ -47,7 +47,7 @@ sys.path.insert(0, str(ROOT))
 
 from benchmarks.readme_meta import meta, write_json  # noqa: E402
 from benchmarks.theta_sweep import seed_range  # noqa: E402
-from benchmarks.validate_estimators import _raise_interrupt, _worker_signals  # noqa: E402
+from fetch_env.parallel import raise_interrupt, worker_signals  # noqa: E402
 
 SQUEEZES = (0.0, 0.02, 0.04, 0.06, 0.08, 0.10, 0.12, 0.15, 0.18, 0.22, 0.27)
 SPEEDS = ((0.4, 0.04), (0.2, 0.02))  # (omega [rad/s], lift_speed [m/s])
@@ -166,7 +166,7 @@ def _run_scenes(args: argparse.Namespace, todo: list[int], stream: Path,
                 done: dict[int, dict[str, Any]]) -> None:
     """Run the ``todo`` scenes on ``args.workers`` processes, appending each to ``stream``
     (and ``done``) as it finishes; after a stop or a lost worker the workers end too."""
-    pool = ProcessPoolExecutor(args.workers, initializer=_worker_signals)
+    pool = ProcessPoolExecutor(args.workers, initializer=worker_signals)
     clean = False
     try:
         with stream.open("a") as f:
@@ -215,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     todo = [s for s in seeds if s not in done]
     out.parent.mkdir(parents=True, exist_ok=True)
     for sig in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, _raise_interrupt)
+        signal.signal(sig, raise_interrupt)
     try:
         _run_scenes(args, todo, stream, done)
     except (KeyboardInterrupt, BrokenProcessPool) as exc:

@@ -31,7 +31,6 @@ import json
 import math
 import os
 import platform
-import signal
 import sys
 import time
 from collections.abc import Callable, Iterable
@@ -66,6 +65,7 @@ from fetch_env.food_space import (
     corner_foods,
     sample_foods,
 )
+from fetch_env.parallel import stopping, worker_signals
 from fetch_env.probes import (
     CALIBRATION_FILE,
     PARAM_NAMES,
@@ -603,10 +603,6 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _raise_interrupt(signum: int, _frame: Any) -> None:
-    raise KeyboardInterrupt(signal.Signals(signum).name)
-
-
 def _run_foods(foods: list[Food], args: argparse.Namespace, calibrated: bool, jsonl: Path,
                records: list[dict[str, Any]], config: ProbeConfig | None = None,
                geometry: Geometry | None = None) -> str:
@@ -635,14 +631,10 @@ def run_streamed(fn: Callable[..., dict[str, Any]], tasks: list[tuple[Any, ...]]
     finished is in ``jsonl`` either way.  While the pool shuts down, further stop signals are
     ignored (``timeout`` and a process-group kill send one to the main process more than
     once, and a second one raising during the pool's exit printed a traceback); the
-    handlers in place before are restored on return."""
-    stops = (signal.SIGTERM, signal.SIGHUP, signal.SIGINT)
-    before = {sig: signal.getsignal(sig) for sig in stops}
-    for sig in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, _raise_interrupt)
-    pool = ProcessPoolExecutor(workers, initializer=_worker_signals)
+    handlers in place before are restored on return (:func:`fetch_env.parallel.stopping`)."""
+    pool = ProcessPoolExecutor(workers, initializer=worker_signals)
     try:
-        with jsonl.open("a") as log:
+        with stopping(pool), jsonl.open("a") as log:
             futures = [pool.submit(fn, *task) for task in tasks]
             for i, fut in enumerate(as_completed(futures), 1):
                 rec = fut.result()
@@ -655,25 +647,7 @@ def run_streamed(fn: Callable[..., dict[str, Any]], tasks: list[tuple[Any, ...]]
         return f"interrupted ({exc.args[0] if exc.args else 'SIGINT'})"
     except BrokenProcessPool:
         return "a worker process died"
-    finally:
-        for sig in stops:
-            signal.signal(sig, signal.SIG_IGN)
-        workers_alive = list((getattr(pool, "_processes", None) or {}).values())
-        pool.shutdown(wait=False, cancel_futures=True)
-        for proc in workers_alive:
-            proc.terminate()  # a worker mid-task would otherwise run on after the stop
-            proc.join()
-        for sig, handler in before.items():
-            signal.signal(sig, handler)
     return ""
-
-
-def _worker_signals() -> None:
-    """Workers stop quietly on SIGTERM and leave Ctrl-C to the main process."""
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    signal.signal(signal.SIGHUP, signal.SIG_DFL)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
 
 if __name__ == "__main__":
     raise SystemExit(main())

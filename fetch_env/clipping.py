@@ -114,10 +114,8 @@ def _stacklevel() -> int:
 
 def warn(records: Iterable[ClipRecord], suffix: str = "") -> None:
     """Warn about each record (unless :func:`reported_elsewhere` is active)."""
-    if _QUIET.get():
-        return
     for rec in records:
-        warnings.warn(message(rec) + suffix, ParameterClippedWarning, stacklevel=_stacklevel())
+        rewarn(ParameterClippedWarning, message(rec) + suffix)
 
 
 def rewarn(category: type[Warning], text: str) -> None:

@@ -25,7 +25,8 @@ from typing import Any
 from fetch_env.clipping import rewarn
 from fetch_env.errors import require, require_int
 
-__all__ = ["Task", "WorkerLostError", "outcome", "run_ahead"]
+__all__ = ["Task", "WorkerLostError", "outcome", "raise_interrupt", "run_ahead",
+           "stopping", "worker_signals"]
 
 # One simulation: a module-level function (picklable) and its arguments.
 Task = tuple[Callable[..., Any], tuple[Any, ...]]
@@ -57,16 +58,14 @@ def run_ahead(tasks: Sequence[Task], workers: int) -> list[Any]:
         return [_capture(fn, *args) for fn, args in tasks]
     context = multiprocessing.get_context("fork" if sys.platform == "linux" else "spawn")
     pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=context,
-                               initializer=_worker_signals)
+                               initializer=worker_signals)
     try:
-        with _stop_signals_interrupt():
+        with stopping(pool):
             futures = [pool.submit(_capture_remote, fn, *args) for fn, args in tasks]
             done = [f.result() for f in futures]
     except BrokenProcessPool as exc:
         raise WorkerLostError(f"a probe worker process died mid-run ({exc}); if it ran "
                               "out of memory, run with fewer workers") from None
-    finally:
-        _stop(pool)
     seen: set[tuple[type[Warning], str]] = set()
     for _, caught in done:
         for key in caught:
@@ -104,57 +103,45 @@ def outcome(result: Any) -> Any:
     return result
 
 
-def _worker_signals() -> None:
-    """Workers stop quietly on SIGTERM and leave Ctrl-C to the main process."""
+def worker_signals() -> None:
+    """A pool worker's signal handlers (its ``initializer``): it stops quietly on SIGTERM and
+    SIGHUP and leaves Ctrl-C to the main process."""
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGHUP, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _interrupt(signum: int, frame: Any) -> None:
+def raise_interrupt(signum: int, _frame: Any) -> None:
+    """A signal handler that stops the main process as Ctrl-C does, naming the signal."""
     raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
 @contextmanager
-def _stop_signals_interrupt() -> Iterator[None]:
-    """Within the block, SIGTERM and SIGHUP raise ``KeyboardInterrupt`` (main thread only:
-    elsewhere signal handlers cannot be set); the handlers found are put back after."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    before = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGHUP)}
-    for sig in before:
-        signal.signal(sig, _interrupt)
+def stopping(pool: ProcessPoolExecutor) -> Iterator[None]:
+    """Run ``pool``'s work within the block and stop the pool on leaving it, however.
+
+    Within the block SIGTERM and SIGHUP raise ``KeyboardInterrupt`` (:func:`raise_interrupt`).
+    On leaving, Ctrl-C, SIGTERM and SIGHUP are ignored while what has not started is
+    cancelled and every worker is terminated and joined (a worker mid-task would otherwise
+    run on after a stop; ``timeout`` and a process-group kill send a stop more than once,
+    and a second one raising here would print a traceback); then the handlers found are
+    put back.  Signal handlers can be set only in the main thread: elsewhere the pool is
+    stopped the same way with the handlers left alone.
+    """
+    main = threading.current_thread() is threading.main_thread()
+    stops = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+    before = {sig: signal.getsignal(sig) for sig in stops} if main else {}
+    for sig in (signal.SIGTERM, signal.SIGHUP) if main else ():
+        signal.signal(sig, raise_interrupt)
     try:
         yield
     finally:
-        for sig, handler in before.items():
-            signal.signal(sig, handler)
-
-
-def _stop(pool: ProcessPoolExecutor) -> None:
-    """Cancel what has not started, terminate and join every worker (a worker mid-task
-    would otherwise run on after a stop); further stop signals wait until this is done."""
-    with _signals_ignored():
+        for sig in before:
+            signal.signal(sig, signal.SIG_IGN)
         alive = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
         for proc in alive:
             proc.terminate()
             proc.join()
-
-
-@contextmanager
-def _signals_ignored() -> Iterator[None]:
-    """Ctrl-C, SIGTERM and SIGHUP ignored within the block (main thread only)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    stops = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-    before = {sig: signal.getsignal(sig) for sig in stops}
-    for sig in stops:
-        signal.signal(sig, signal.SIG_IGN)
-    try:
-        yield
-    finally:
         for sig, handler in before.items():
             signal.signal(sig, handler)
