@@ -11,6 +11,7 @@ are raised again here, once each.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
 import sys
 import threading
@@ -120,28 +121,67 @@ def raise_interrupt(signum: int, _frame: Any) -> None:
 def stopping(pool: ProcessPoolExecutor) -> Iterator[None]:
     """Run ``pool``'s work within the block and stop the pool on leaving it, however.
 
-    Within the block SIGTERM and SIGHUP raise ``KeyboardInterrupt`` (:func:`raise_interrupt`).
-    On leaving, Ctrl-C, SIGTERM and SIGHUP are ignored while what has not started is
-    cancelled and every worker is terminated and joined (a worker mid-task would otherwise
+    On entering, the pool's workers are started with the stop signals held back (one
+    arriving while a worker is being forked would leave that worker running, unrecorded by
+    the pool) and delivered once all are recorded.  Within the block SIGTERM and SIGHUP
+    raise ``KeyboardInterrupt`` (:func:`raise_interrupt`).  On leaving, Ctrl-C, SIGTERM and
+    SIGHUP are ignored while what has not started is cancelled, every worker is terminated
+    and joined, and the pool's manager thread has ended (a worker mid-task would otherwise
     run on after a stop; ``timeout`` and a process-group kill send a stop more than once,
-    and a second one raising here would print a traceback); then the handlers found are
-    put back.  Signal handlers can be set only in the main thread: elsewhere the pool is
-    stopped the same way with the handlers left alone.
+    and a second one raising here would print a traceback); then the handlers found are put
+    back.  Signal handlers can be set only in the main thread: elsewhere the pool is stopped
+    the same way with the handlers left alone.
     """
     main = threading.current_thread() is threading.main_thread()
     stops = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
     before = {sig: signal.getsignal(sig) for sig in stops} if main else {}
-    for sig in (signal.SIGTERM, signal.SIGHUP) if main else ():
-        signal.signal(sig, raise_interrupt)
+    during = {sig: raise_interrupt if sig != signal.SIGINT else handler
+              for sig, handler in before.items()}
     try:
+        held = _start_workers(pool, during)
+        for sig in held:
+            signal.raise_signal(sig)
         yield
     finally:
         for sig in before:
             signal.signal(sig, signal.SIG_IGN)
         alive = list((getattr(pool, "_processes", None) or {}).values())
+        manager = getattr(pool, "_executor_manager_thread", None)
         pool.shutdown(wait=False, cancel_futures=True)
         for proc in alive:
             proc.terminate()
+        for proc in alive:
             proc.join()
+        if manager is not None:  # it reaps the workers too: done only once it has ended
+            manager.join(timeout=10.0)
         for sig, handler in before.items():
             signal.signal(sig, handler)
+
+
+def _start_workers(pool: ProcessPoolExecutor, after: dict[int, Any]) -> list[int]:
+    """Start every worker of ``pool`` (one no-op task each) with the signals in ``after``
+    held back, then set ``after``'s handlers and return the signals held, in order.
+
+    A worker forked meanwhile inherits the holding handler until its initializer runs: there
+    a held signal does what it does by default (a ``terminate`` kills it).
+    """
+    home, held = os.getpid(), []
+
+    def hold(signum: int, _frame: Any) -> None:
+        if os.getpid() != home:
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+            return
+        if signum not in held:
+            held.append(signum)
+
+    for sig in after:
+        signal.signal(sig, hold)
+    try:
+        started = [pool.submit(int) for _ in range(getattr(pool, "_max_workers", 1))]
+        for future in started:
+            future.result()
+    finally:
+        for sig, handler in after.items():
+            signal.signal(sig, handler)
+    return held
