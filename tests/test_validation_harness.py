@@ -14,10 +14,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from scipy.stats import beta
 
 from benchmarks.validate_estimators import (
     _speed_line,
     calibrate,
+    coverage_interval,
+    coverage_text,
     foods_of,
     measure,
     summarize,
@@ -138,3 +141,15 @@ def test_default_probes_meet_the_reporting_sets_figures_on_its_first_foods() -> 
         assert np.median(err[k]) <= 0.03, (k, err[k])
     for k in ("g1", "tau1"):
         assert sum(bool(r["covered"][k]) for r in recs) >= 7, k
+
+
+def test_coverage_interval_is_the_exact_binomial_one() -> None:
+    """k of n: Clopper-Pearson's bounds, the Beta quantiles (n of n: alpha/2 ** (1/n) to 1;
+    0 of n: 0 to 1 - alpha/2 ** (1/n)), and the table's text of them."""
+    assert_allclose(coverage_interval(1.0, 64), (0.025 ** (1 / 64), 1.0), rtol=1e-9)
+    assert_allclose(coverage_interval(0.0, 64), (0.0, 1 - 0.025 ** (1 / 64)), rtol=1e-9)
+    lo, hi = coverage_interval(61 / 64, 64)
+    assert_allclose((lo, hi), (beta.ppf(0.025, 61, 4), beta.ppf(0.975, 62, 3)), rtol=1e-7)
+    assert coverage_text(1.0, 64) == "100 % of 64 (94-100 %)"
+    assert coverage_text(61 / 64, 64) == f"95 % of 64 ({100 * lo:.0f}-{100 * hi:.0f} %)"
+    assert coverage_text(math.nan, 0) == "-"
