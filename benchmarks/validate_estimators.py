@@ -66,7 +66,7 @@ from fetch_env.food_space import (
     corner_foods,
     sample_foods,
 )
-from fetch_env.parallel import stopping, worker_signals
+from fetch_env.parallel import pool_context, stopping, worker_signals
 from fetch_env.probes import (
     CALIBRATION_FILE,
     PARAM_NAMES,
@@ -650,7 +650,7 @@ def run_streamed(fn: Callable[..., dict[str, Any]], tasks: list[tuple[Any, ...]]
     ignored (``timeout`` and a process-group kill send one to the main process more than
     once, and a second one raising during the pool's exit printed a traceback); the
     handlers in place before are restored on return (:func:`fetch_env.parallel.stopping`)."""
-    pool = ProcessPoolExecutor(workers, initializer=worker_signals)
+    pool = ProcessPoolExecutor(workers, mp_context=pool_context(), initializer=worker_signals)
     try:
         with stopping(pool), jsonl.open("a") as log:
             futures = [pool.submit(fn, *task) for task in tasks]

@@ -36,6 +36,7 @@ check so that a stopped run keeps what finished.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import warnings
 from pathlib import Path
@@ -164,15 +165,16 @@ def soft_levels(env_id: str, seeds: range = range(100, 140)) -> list[dict[str, A
 
 def summarize_levels(rows: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """Per clamp angle: fetches, how many settings disagree by > DISAGREE, the mean spread,
-    and each setting's mean reward."""
+    and each setting's mean reward (sums exactly rounded, so that every Python version gives
+    the same digits: 3.12's ``sum`` of floats compensates, 3.11's does not)."""
     out: dict[str, dict[str, Any]] = {}
     for theta in sorted({r["theta"] for r in rows}):
         at = [r for r in rows if r["theta"] == theta]
         n_off = sum(r["spread"] > DISAGREE for r in at)
         out[f"{theta:g}"] = {
             "fetches": len(at), "settings_disagree": n_off,
-            "mean_spread": round(sum(r["spread"] for r in at) / len(at), 3),
-            "mean_reward": {name: round(sum(r[name]["reward"] for r in at) / len(at), 3)
+            "mean_spread": round(math.fsum(r["spread"] for r in at) / len(at), 3),
+            "mean_reward": {name: round(math.fsum(r[name]["reward"] for r in at) / len(at), 3)
                             for name in SETTINGS}}
     return out
 

@@ -21,13 +21,14 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
+from multiprocessing.context import BaseContext
 from typing import Any
 
 from fetch_env.clipping import rewarn
 from fetch_env.errors import require, require_int
 
-__all__ = ["Task", "WorkerLostError", "outcome", "raise_interrupt", "run_ahead",
-           "stopping", "worker_signals"]
+__all__ = ["Task", "WorkerLostError", "outcome", "pool_context", "raise_interrupt",
+           "run_ahead", "stopping", "worker_signals"]
 
 # One simulation: a module-level function (picklable) and its arguments.
 Task = tuple[Callable[..., Any], tuple[Any, ...]]
@@ -42,8 +43,8 @@ def run_ahead(tasks: Sequence[Task], workers: int) -> list[Any]:
 
     ``workers`` processes (at most one per task) run them; 1 runs them here, one after the
     other, and so does a daemonic process (a pool's worker may not start processes of its
-    own).  Linux forks the workers (they inherit the imported modules); elsewhere they are
-    spawned.  An exception from a worker carries the worker's traceback as a note.
+    own).  The workers start as :func:`pool_context` says.  An exception from a worker
+    carries the worker's traceback as a note.
 
     Stopping: Ctrl-C is left to this process (the workers ignore it), SIGTERM and SIGHUP
     are raised here as ``KeyboardInterrupt`` (where this runs in the main thread), and on
@@ -57,8 +58,7 @@ def run_ahead(tasks: Sequence[Task], workers: int) -> list[Any]:
     require(workers >= 1, "workers", workers, ">= 1")
     if workers == 1 or len(tasks) <= 1 or multiprocessing.current_process().daemon:
         return [_capture(fn, *args) for fn, args in tasks]
-    context = multiprocessing.get_context("fork" if sys.platform == "linux" else "spawn")
-    pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=context,
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=pool_context(),
                                initializer=worker_signals)
     try:
         with stopping(pool):
@@ -74,6 +74,23 @@ def run_ahead(tasks: Sequence[Task], workers: int) -> list[Any]:
                 seen.add(key)
                 rewarn(*key)
     return [result for result, _ in done]
+
+
+def pool_context() -> BaseContext:
+    """How a pool's workers start.
+
+    On Linux they are forked where this process runs no other Python thread (the command
+    line, a script): they start at once, everything imported.  Where other threads run (a
+    notebook's kernel, an application) a fork copies any lock one of them holds, and a worker
+    could hang on it (Python 3.12 warns of it): there they come from multiprocessing's fork
+    server, and import the tasks' modules themselves (about a second a worker).  Elsewhere
+    they are spawned.  A fork server or spawned worker runs the main script again, so a
+    script with threads of its own starts its pools under ``if __name__ == "__main__":``.
+    """
+    if sys.platform != "linux":
+        return multiprocessing.get_context("spawn")
+    return multiprocessing.get_context("fork" if threading.active_count() == 1
+                                       else "forkserver")
 
 
 def _capture(fn: Callable[..., Any], *args: Any) -> Any:
@@ -162,8 +179,9 @@ def _start_workers(pool: ProcessPoolExecutor, after: dict[int, Any]) -> list[int
     """Start every worker of ``pool`` (one no-op task each) with the signals in ``after``
     held back, then set ``after``'s handlers and return the signals held, in order.
 
-    A worker forked meanwhile inherits the holding handler until its initializer runs: there
-    a held signal does what it does by default (a ``terminate`` kills it).
+    A worker forked from this process meanwhile inherits the holding handler until its
+    initializer runs: there a held signal does what it does by default (a ``terminate``
+    kills it).
     """
     home, held = os.getpid(), []
 

@@ -5,6 +5,7 @@ a dead worker said in one line."""
 from __future__ import annotations
 
 import multiprocessing
+import multiprocessing.forkserver
 import os
 import pickle
 import signal
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+import fetch_env.parallel
 from fetch_env.clipping import reported_elsewhere
 from fetch_env.errors import (
     InvalidParameterError,
@@ -23,12 +25,21 @@ from fetch_env.errors import (
 )
 from fetch_env.layouts import single_block
 from fetch_env.materials import Material
-from fetch_env.parallel import WorkerLostError, outcome, run_ahead
+from fetch_env.parallel import WorkerLostError, outcome, pool_context, run_ahead
 from fetch_env.probes import PROBE_CALIBRATIONS, PROBE_PRESETS, run_probes
 from tests.cli_helpers import assert_one_line_error, run_cli
 
 # a small stiff ellipsoid: seven clamps and three slides of the repeated probes in ~1 s
 PIECES = single_block("ellipsoid", 0.012, Material(young=8e5, g1=0.35, tau1=1.2, mu=0.4))
+
+
+@pytest.fixture(params=["fork", "forkserver"])
+def start_method(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
+    """Both ways :func:`fetch_env.parallel.pool_context` starts workers on Linux, whatever
+    threads the test process runs."""
+    context = multiprocessing.get_context(request.param)
+    monkeypatch.setattr(fetch_env.parallel, "pool_context", lambda: context)
+    return str(request.param)
 
 
 @pytest.mark.parametrize(("preset", "noise"),
@@ -45,6 +56,33 @@ def test_workers_give_the_serial_estimates(preset: str, noise: float) -> None:
     assert pooled.details["diagnostics"] == serial.details["diagnostics"]
     assert pooled.reliable == serial.reliable
     assert pooled.visco_valid and pooled.friction_valid
+
+
+def test_both_start_methods_give_the_serial_estimates(start_method: str) -> None:
+    config, cal = PROBE_PRESETS["repeated"], PROBE_CALIBRATIONS["repeated"]
+    serial = run_probes(PIECES, config, noise=0.01, seed=4, calibration=cal)
+    pooled = run_probes(PIECES, config, noise=0.01, seed=4, calibration=cal, workers=2)
+    assert (pooled.estimates, pooled.intervals) == (serial.estimates, serial.intervals)
+
+
+def _context_name(queue: multiprocessing.Queue, threads: int) -> None:  # type: ignore[type-arg]
+    stop = threading.Event()
+    for _ in range(threads):
+        threading.Thread(target=stop.wait, daemon=True).start()
+    queue.put(pool_context().get_start_method())
+    stop.set()
+
+
+@pytest.mark.parametrize(("threads", "method"), [(0, "fork"), (1, "forkserver")])
+def test_workers_fork_only_where_no_other_thread_runs(threads: int, method: str) -> None:
+    """A process with no other Python thread forks its workers; one with a thread (that
+    could hold a lock the fork copies) takes them from the fork server."""
+    ctx = multiprocessing.get_context("spawn")
+    queue: multiprocessing.Queue = ctx.Queue()  # type: ignore[type-arg]
+    proc = ctx.Process(target=_context_name, args=(queue, threads))
+    proc.start()
+    assert queue.get(timeout=60) == method
+    proc.join(timeout=60)
 
 
 @pytest.mark.parametrize("bad", [0, -1, 1.5, True, "2"])
@@ -74,18 +112,21 @@ def _fail(x: int) -> int:
     raise ValueError(f"bad value {x}")
 
 
-def test_worker_warnings_are_raised_here_once() -> None:
+def test_worker_warnings_are_raised_here_once(start_method: str) -> None:
     """Warnings raised in the workers come back to this process, once per text; a clipping
     warning stays silent where the caller reports clipping itself."""
     tasks = [(_warn_and_square, (2,)), (_warn_and_square, (3,))]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        # Python >= 3.12 on the fork forced on a process with threads (the test runner's)
+        warnings.filterwarnings("ignore", "This process .* is multi-threaded", DeprecationWarning)
         assert run_ahead(tasks, 2) == [4, 9]
     assert [str(w.message) for w in caught] == ["a value was clipped"]
     assert caught[0].category is ParameterClippedWarning
     assert caught[0].filename == __file__  # the caller's line, as the package warns
     with warnings.catch_warnings(record=True) as caught, reported_elsewhere():
         warnings.simplefilter("always")
+        warnings.filterwarnings("ignore", "This process .* is multi-threaded", DeprecationWarning)
         run_ahead(tasks, 2)
     assert caught == []
 
@@ -129,9 +170,24 @@ def _child_pids() -> set[int]:
     return pids
 
 
+def _fork_server() -> set[int]:
+    """The fork server's process, where one runs (it serves every pool, and stays)."""
+    pid = getattr(multiprocessing.forkserver._forkserver, "_forkserver_pid", None)
+    return {pid} if pid else set()
+
+
+def _fork_server_children() -> set[int]:
+    """The fork server's children (its workers), as the kernel has them."""
+    pids: set[int] = set()
+    for server in _fork_server():
+        for task in Path(f"/proc/{server}/task").glob("*"):
+            pids.update(int(pid) for pid in (task / "children").read_text().split())
+    return pids
+
+
 # 0 s: the stop lands while the pool is still forking its workers; 0.2 s: while they run
 @pytest.mark.parametrize("delay", [0.0, 0.0, 0.0, 0.2])
-def test_sigterm_stops_the_pool_and_leaves_no_worker(delay: float) -> None:
+def test_sigterm_stops_the_pool_and_leaves_no_worker(delay: float, start_method: str) -> None:
     """SIGTERM while the workers start or run: ``KeyboardInterrupt`` here, every worker
     process gone, the handler found put back."""
     before = signal.getsignal(signal.SIGTERM)
@@ -150,11 +206,12 @@ def test_sigterm_stops_the_pool_and_leaves_no_worker(delay: float) -> None:
         run_ahead([(_sleep, (30.0,)), (_sleep, (30.0,)), (_sleep, (30.0,))], 2)
     assert time.monotonic() - start < 10.0
     assert multiprocessing.active_children() == []
-    assert _child_pids() <= children_before
+    assert _child_pids() <= children_before | _fork_server()
+    assert _fork_server_children() == set()
     assert signal.getsignal(signal.SIGTERM) is before
 
 
-def test_errors_come_back_in_their_place() -> None:
+def test_errors_come_back_in_their_place(start_method: str) -> None:
     """A task's error is returned in its place, whole (its scene and action too), and
     :func:`outcome` raises it; the other tasks' results are kept."""
     tasks = [(_square, (2,)), (_diverge, (7,)), (_square, (3,))]
@@ -174,7 +231,7 @@ def test_simulation_diverged_error_pickles_whole() -> None:
                                                                     ["where"])
 
 
-def test_a_dead_worker_is_one_clear_error() -> None:
+def test_a_dead_worker_is_one_clear_error(start_method: str) -> None:
     with pytest.raises(WorkerLostError, match="died mid-run"):
         run_ahead([(_die, (1,)), (_square, (2,))], 2)
 
