@@ -104,6 +104,10 @@ def as_trace(name: str, values: ArrayLike) -> NDArray[np.float64]:
     return arr
 
 
+MIN_SAMPLE_INTERVAL = 1e-6  # [s] no force or angle sensor samples faster than a megahertz
+MAX_SAMPLE = 1e12  # a sample beyond this, in SI units, is a unit slip or a corrupt log
+
+
 def check_traces(
     t: ArrayLike, min_samples: int = 10, **traces: ArrayLike
 ) -> tuple[NDArray[np.float64], dict[str, NDArray[np.float64]]]:
@@ -118,8 +122,9 @@ def check_traces(
         ``(t, traces)`` as float64 arrays.
 
     Raises:
-        EstimationError: too few samples, mismatched lengths, NaN/inf samples, or time that is
-            unsorted or repeated.
+        EstimationError: too few samples, mismatched lengths, NaN/inf samples, time that is
+            unsorted, repeated or sampled faster than ``MIN_SAMPLE_INTERVAL``, or a sample
+            beyond ``MAX_SAMPLE``.
     """
     tt = as_trace("t", t)
     out = {name: as_trace(name, v) for name, v in traces.items()}
@@ -140,4 +145,15 @@ def check_traces(
             f"time t is {kind} at index {idx + 1}: t[{idx}]={tt[idx]!r}, "
             f"t[{idx + 1}]={tt[idx + 1]!r}; t must be strictly increasing"
         )
+    if dt.min() < MIN_SAMPLE_INTERVAL:
+        idx = int(np.argmin(dt))
+        raise EstimationError(
+            f"time t steps by {dt[idx]:.3g} s at index {idx + 1}, below "
+            f"{MIN_SAMPLE_INTERVAL:g} s (a megahertz): t must be in seconds"
+        )
+    for name, v in {"t": tt, **out}.items():
+        if np.max(np.abs(v)) > MAX_SAMPLE:
+            idx = int(np.argmax(np.abs(v)))
+            raise EstimationError(f"{name}[{idx}]={v[idx]!r} is beyond +-{MAX_SAMPLE:g} (SI "
+                                  "units: s, rad, N, N m)")
     return tt, out

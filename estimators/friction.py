@@ -117,6 +117,10 @@ def estimate_friction(
     """
     slide_start = optional_real("slide_start", slide_start)
     stability, min_normal = real("stability", stability), real("min_normal", min_normal)
+    if slide_start is not None and not math.isfinite(slide_start):
+        raise EstimationError(f"slide_start must be a finite time, s, got {slide_start!r}")
+    if not (math.isfinite(min_normal) and min_normal >= 0.0):
+        raise EstimationError(f"min_normal must be a finite force >= 0 N, got {min_normal!r}")
     forces = _slide_forces(
         t, normal_left, tangential_left, normal_right, tangential_right, slide_start
     )

@@ -50,13 +50,18 @@ __all__ = [
 Method = Literal["closed", "quadrature", "ivp"]
 
 
+MAX_LEVER_ARM = 1.0  # m: the longest half-spoon lever arm ClampGeometry takes
+
+
 @dataclass(frozen=True)
 class ClampGeometry:
     """Geometry of one half-spoon.
 
     Attributes:
-        L: distance from the hinge axis to the equivalent contact section, m.
-        theta_0: hinge angle at which the half-spoon is fully closed, rad.
+        L: distance from the hinge axis to the equivalent contact section, m, in (0, 1]
+            (a half-spoon's lever arm is centimetres; a metre is a unit slip).
+        theta_0: hinge angle at which the half-spoon is fully closed, rad, within
+            (-pi/2, pi/2) (the clamp's eq. 7 divides by cos(theta_0 + theta)).
     """
 
     L: float
@@ -65,10 +70,12 @@ class ClampGeometry:
     def __post_init__(self) -> None:
         real("L", self.L)
         real("theta_0", self.theta_0)
-        if not (np.isfinite(self.L) and self.L > 0.0):
-            raise EstimationError(f"lever arm L must be finite and > 0 m, got {self.L!r}")
-        if not np.isfinite(self.theta_0):
-            raise EstimationError(f"theta_0 must be finite, got {self.theta_0!r}")
+        if not (np.isfinite(self.L) and 0.0 < self.L <= MAX_LEVER_ARM):
+            raise EstimationError(f"lever arm L must be in (0, {MAX_LEVER_ARM:g}] m, "
+                                  f"got {self.L!r}")
+        if not (np.isfinite(self.theta_0) and abs(self.theta_0) < np.pi / 2):
+            raise EstimationError(f"theta_0 must be within (-pi/2, pi/2) rad, got "
+                                  f"{self.theta_0!r}")
 
 
 @dataclass(frozen=True)

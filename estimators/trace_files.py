@@ -28,6 +28,7 @@ import csv
 import json
 import math
 import os
+from collections import Counter
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,7 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.errors import EstimationError, optional_real
+from estimators.errors import MAX_SAMPLE, MIN_SAMPLE_INTERVAL, EstimationError, optional_real
 from estimators.sls import ClampGeometry
 
 __all__ = [
@@ -231,6 +232,9 @@ def _number(path: str | os.PathLike[str], value: object, where: str, text: bool 
         raise TraceFileError(path, f"{where}: {value!r} is not a number")
     try:
         return float(value)
+    except OverflowError:  # an integer beyond any float
+        raise TraceFileError(path, f"{where}: {str(value)[:20]}... is beyond a float's "
+                             "range") from None
     except ValueError:
         shown = repr(value) if str(value).strip() else "empty cell"
         raise TraceFileError(path, f"{where}: {shown} is not a number") from None
@@ -254,7 +258,8 @@ def _parse_csv(path: str | os.PathLike[str], text: str) -> _Table:
     if len(names) < 2:
         raise TraceFileError(path, f"not a CSV file: the header row {lines[i][:40]!r} (line "
                              f"{i + 1}) has no comma-separated column names such as t,theta")
-    dup = sorted({n for n in names if names.count(n) > 1 and n in COLUMNS})
+    counts = Counter(names)
+    dup = sorted(n for n, c in counts.items() if c > 1 and n in COLUMNS)
     if dup:
         raise TraceFileError(path, f"column {dup[0]!r} appears twice in the header")
     if "t" not in names:
@@ -292,6 +297,10 @@ def _parse_json(path: str | os.PathLike[str], text: str) -> _Table:
     except json.JSONDecodeError as exc:
         raise TraceFileError(path, f"not valid JSON: {exc.msg} at line {exc.lineno}, column "
                              f"{exc.colno}") from None
+    except ValueError as exc:  # an integer literal past Python's digit limit
+        raise TraceFileError(path, f"not readable JSON: {str(exc).split(';')[0]}") from None
+    except RecursionError:
+        raise TraceFileError(path, "not readable JSON: nested too deeply") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("traces"), dict):
         raise TraceFileError(path, "JSON without a 'traces' object (expected what "
                              "'food-fetch simulate --json' writes)")
@@ -343,6 +352,11 @@ def _check_columns(path: str | os.PathLike[str], table: _Table) -> Array:
         if bad.size:
             raise TraceFileError(path, f"column {name!r} has {values[bad[0]]} at "
                                  f"{table.where(int(bad[0]))} ({bad.size} non-finite value(s))")
+        big = np.flatnonzero(np.abs(values) > MAX_SAMPLE)
+        if big.size:
+            raise TraceFileError(path, f"column {name!r} has {values[big[0]]:g} at "
+                                 f"{table.where(int(big[0]))}, beyond +-{MAX_SAMPLE:g} (SI "
+                                 "units: s, rad, N, N m)")
     if t.size < MIN_SAMPLES:
         raise TraceFileError(path, f"too short: {t.size} samples, at least {MIN_SAMPLES} "
                              "are needed")
@@ -351,6 +365,12 @@ def _check_columns(path: str | os.PathLike[str], table: _Table) -> Array:
         j = int(back[0]) + 1
         raise TraceFileError(path, f"time not strictly increasing at {table.where(j)}: "
                              f"t = {float(t[j])!r} s after t = {float(t[j - 1])!r} s")
+    fast = np.flatnonzero(np.diff(t) < MIN_SAMPLE_INTERVAL)
+    if fast.size:
+        j = int(fast[0]) + 1
+        raise TraceFileError(path, f"time steps by {float(t[j] - t[j - 1]):.3g} s at "
+                             f"{table.where(j)}, below {MIN_SAMPLE_INTERVAL:g} s (a "
+                             "megahertz): t must be in seconds")
     _check_groups(path, cols, found)
     return t
 

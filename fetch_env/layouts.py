@@ -149,6 +149,7 @@ def single_row(spacing_across: float = 0.001, n: int = 3, size: float = 0.012,
     kept only to describe the layout.
     """
     del spacing_along
+    _check_row_count(n)
     return grid(1, n, size, 0.001, spacing_across, material)
 
 
@@ -156,7 +157,14 @@ def two_rows(material: Material | None = None, n: int = 3, size: float = 0.012,
              spacing_along: float = 0.001, spacing_across: float = 0.00001
              ) -> tuple[Piece, ...]:
     """The study's two rows: 2 x ``n`` cubes, 1 mm along and 0.01 mm across the clamp."""
+    _check_row_count(n)
     return grid(2, n, size, spacing_along, spacing_across, material)
+
+
+def _check_row_count(n: int) -> None:
+    """A row's ``n`` named as the caller gave it (``grid`` would call it ``n_across``)."""
+    require_int("n", n)
+    require(1 <= n <= MAX_GRID, "n", n, f"in [1, {MAX_GRID}]")
 
 
 def diced_mix(rng: np.random.Generator, n_pieces: int | None = None,

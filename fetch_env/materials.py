@@ -15,6 +15,13 @@ from typing import Any
 from fetch_env.errors import InvalidParameterError, require, require_finite
 
 DENSITY_LIMITS = (10.0, 5e4)  # [kg/m^3] accepted densities
+# Food friction coefficients are below about 2; the simulator holds up to 1000 (a fetch at
+# mu 1000 runs as at 2), and 10 leaves room for an exotic coating while a typo's extra
+# digits are refused before any work (at 1e100 the solver diverges mid-run).
+MU_MAX = 10.0
+# A relaxation time past about a day is no relaxation over any clamp; beyond 1e6 s the
+# Maxwell arm's dashpot B = tau1 K2 leaves the range the estimators compute in.
+TAU_MAX = 1e6  # [s]
 
 
 @dataclass(frozen=True)
@@ -25,10 +32,12 @@ class Material:
         young: instantaneous Young's modulus E_0 [Pa]; 0.0123 MPa to 200 MPa are tested.
         poisson: Poisson's ratio nu, in [0, 0.5).
         density: [kg/m^3], in ``DENSITY_LIMITS`` (10 to 5e4).
-        g1, tau1: first Prony term: relative modulus drop [-] in [0, 1) and time constant [s].
+        g1, tau1: first Prony term: relative modulus drop [-] in [0, 1) and time constant [s]
+            in (0, ``TAU_MAX``] (1e6).
         extra_prony: further Prony terms as ``((g_2, tau_2), ...)``; sum of all g < 1.
-        mu: Coulomb friction coefficient between half-spoon and food [-], applied exactly.
-        plate_mu: friction coefficient between food and plate [-].
+        mu: Coulomb friction coefficient between half-spoon and food [-], applied exactly;
+            in [0, ``MU_MAX``] (10).
+        plate_mu: friction coefficient between food and plate [-], in [0, ``MU_MAX``].
         yield_strain: von Mises plastic yield strain [-]; 0 means purely (visco)elastic.
         name: a label (preset name or "custom").
     """
@@ -56,9 +65,9 @@ class Material:
         require(DENSITY_LIMITS[0] <= self.density <= DENSITY_LIMITS[1], "density", self.density,
                 f"in [{DENSITY_LIMITS[0]:g}, {DENSITY_LIMITS[1]:g}] kg/m^3")
         require(0 <= self.g1 < 1, "g1", self.g1, "in [0, 1)")
-        require(self.tau1 > 0, "tau1", self.tau1, "> 0 s")
-        require(self.mu >= 0, "mu", self.mu, ">= 0")
-        require(self.plate_mu >= 0, "plate_mu", self.plate_mu, ">= 0")
+        require(0 < self.tau1 <= TAU_MAX, "tau1", self.tau1, f"in (0, {TAU_MAX:g}] s")
+        require(0 <= self.mu <= MU_MAX, "mu", self.mu, f"in [0, {MU_MAX:g}]")
+        require(0 <= self.plate_mu <= MU_MAX, "plate_mu", self.plate_mu, f"in [0, {MU_MAX:g}]")
         require(self.yield_strain >= 0, "yield_strain", self.yield_strain, ">= 0")
         require(isinstance(self.name, str), "name", self.name, "a str")
         require(isinstance(self.extra_prony, tuple | list), "extra_prony", self.extra_prony,
@@ -70,7 +79,7 @@ class Material:
             require_finite(f"g{k}", g)
             require_finite(f"tau{k}", tau)
             require(0 <= g < 1, f"g{k}", g, "in [0, 1)")
-            require(tau > 0, f"tau{k}", tau, "> 0 s")
+            require(0 < tau <= TAU_MAX, f"tau{k}", tau, f"in (0, {TAU_MAX:g}] s")
         # Stored as a tuple of tuples whatever sequence was given: a Material is frozen and
         # hashed (scenes are cached and pieces grouped by material), which a list would break.
         object.__setattr__(self, "extra_prony",

@@ -54,7 +54,11 @@ def test_help_is_clear(capsys: pytest.CaptureFixture[str]) -> None:
     (["--env-kwargs", "foo"], "--env-kwargs: expected KEY=VALUE, got 'foo'"),
     (["--env-kwargs", "hold=1", "hold=2"], "--env-kwargs: hold given twice"),
     (["--env-kwargs", "render_mode=human"], "render_mode is not an evaluation setting"),
-    (["--json", "same.json", "--episodes-log", "same.json"], "--episodes-log must differ"),
+    (["--json", "same.json", "--episodes-log", "same.json"],
+     "--json and --episodes-log name the same file 'same.json'"),
+    (["--json", "o.json", "--csv", "./o.json"], "--json and --csv name the same file"),
+    (["--episodes", "1000001"], "--episodes: 1000001 is more than 1,000,000 episodes"),
+    (["--json", "/proc/x.json"], "--json: cannot write to '/proc/x.json'"),
     (["--resume", "/nonexistent/x.jsonl"], "--resume: no such file"),
 ])
 def test_mistakes_are_one_line_and_exit_2(argv: list[str], fragment: str,

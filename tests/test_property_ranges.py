@@ -181,9 +181,9 @@ MATERIAL_RANGES = {
     "poisson": Range(0.0, 0.5, hi_open=True),
     "density": Range(10.0, 5e4),
     "g1": Range(0.0, 1.0, hi_open=True),
-    "tau1": Range(0.0, None, lo_open=True),
-    "mu": Range(0.0, None),
-    "plate_mu": Range(0.0, None),
+    "tau1": Range(0.0, 1e6, lo_open=True),
+    "mu": Range(0.0, 10.0),
+    "plate_mu": Range(0.0, 10.0),
     "yield_strain": Range(0.0, None),
 }
 
@@ -998,13 +998,16 @@ def test_estimators_refuse_bad_traces(bad: tuple[str, Any, Any], which: str) -> 
 
 
 @examples(60)
-@given(L=around(Range(0.0, None, lo_open=True)),
-       theta_0=st.one_of(st.floats(-1, 1), st.sampled_from([math.nan, math.inf])))
-def test_clamp_geometry_numbers(L: Any, theta_0: float) -> None:
-    """A finite lever arm > 0 and a finite theta_0 make a geometry; NaN/inf or L <= 0 is an
-    EstimationError (wrong types: see below)."""
+@given(L=around(Range(0.0, 1.0, lo_open=True)),
+       theta_0=st.one_of(around(Range(-math.pi / 2, math.pi / 2, lo_open=True, hi_open=True)),
+                         st.sampled_from([math.nan, math.inf])))
+def test_clamp_geometry_numbers(L: Any, theta_0: Any) -> None:
+    """A lever arm in (0, 1] m and a theta_0 within (-pi/2, pi/2) make a geometry; anything
+    else (NaN/inf too) is an EstimationError (wrong types: see below)."""
     assume(isinstance(L, int | float) and not isinstance(L, bool))
-    if Range(0.0, None, lo_open=True).contains(L) and math.isfinite(theta_0):
+    assume(isinstance(theta_0, int | float) and not isinstance(theta_0, bool))
+    if (Range(0.0, 1.0, lo_open=True).contains(L)
+            and Range(-math.pi / 2, math.pi / 2, lo_open=True, hi_open=True).contains(theta_0)):
         assert ClampGeometry(L=L, theta_0=theta_0).L == L
     else:
         with pytest.raises(EstimationError) as exc_info:

@@ -25,6 +25,8 @@ from tests.cli_helpers import assert_one_line_error, run_cli
     (["fetch-rate", "--seed", "-1", "--quick", "--no-figures"],
      "--seed: -1 is not in [0, 4294967295]"),
     (["fetch-rate", "--seed", str(2**32)], f"--seed: {2**32} is not in [0, 4294967295]"),
+    (["friction", "--out", " "], "--out: not a directory name: ' '"),
+    (["friction", "--mus", "0.1,,0.2"], "--mus '0.1,,0.2' has an empty item"),
 ], ids=lambda v: v if isinstance(v, str) else " ".join(v))
 def test_a_mistake_is_one_line_and_creates_no_out_dir(
         tmp_path: Path, capsys: pytest.CaptureFixture[str], no_simulation: None,

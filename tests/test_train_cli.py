@@ -40,6 +40,7 @@ def test_help_lists_the_options(capsys: pytest.CaptureFixture[str]) -> None:
     (["--hyperparams", "=3"], "override must be key=value"),
     (["--hyperparams-file", "missing.yml"], "cannot read hyperparameter file"),
     (["--log-dir", "/proc/version/x"], "--log-dir: cannot write to"),
+    (["--log-dir", ""], "--log-dir: not a directory name: ''"),
 ])
 def test_mistakes_are_one_line_and_exit_2(argv: list[str], fragment: str, tmp_path: Path,
                                          capsys: pytest.CaptureFixture[str]) -> None:

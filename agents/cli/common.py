@@ -77,6 +77,8 @@ def out_dir(path: str) -> Path:
     """``--out``: a directory that exists or can be created (its nearest existing ancestor is
     a writable directory).  Only checked here: the command creates it once every input is known
     good, so a rejected call leaves no empty directory behind."""
+    if not path.strip():  # Path("") is the current directory: say so rather than write there
+        raise argparse.ArgumentTypeError(f"not a directory name: {path!r}")
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise argparse.ArgumentTypeError(f"not a directory: {path!r}")
@@ -120,7 +122,40 @@ def writable(path: str) -> Path:
         raise argparse.ArgumentTypeError(f"directory does not exist: {str(parent)!r}")
     if not os.access(parent, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
         raise argparse.ArgumentTypeError(f"cannot write to {path!r}")
+    _try_a_file_in(parent, path)
     return p
+
+
+def _try_a_file_in(directory: Path, path: str) -> None:
+    """Create and remove a file in ``directory``, as the atomic writer will (a temporary file
+    beside ``path``): a directory that permissions allow but that refuses files (/proc, a
+    read-only mount) is refused now rather than after the run."""
+    import tempfile
+
+    try:
+        fd, tmp = tempfile.mkstemp(dir=directory, prefix=".food-fetch-check-")
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"cannot write to {path!r}: "
+                                         f"{exc.strerror or exc}") from None
+    os.close(fd)
+    os.unlink(tmp)
+
+
+def require_distinct(command: str, paths: dict[str, Path | str | None]) -> None:
+    """Refuse two options that name one file (an output would overwrite an input, or another
+    output): ``paths`` maps each option to its path or None.  Paths written as they are
+    (/dev/stdout, a FIFO) may be shared."""
+    from agents.atomic import written_as_is
+
+    seen: dict[str, str] = {}
+    for option, path in paths.items():
+        if path is None or (Path(path).exists() and written_as_is(Path(path))):
+            continue
+        key = os.path.realpath(path)
+        if key in seen:
+            raise UsageError(f"{command}: {seen[key]} and {option} name the same file "
+                             f"{str(path)!r}")
+        seen[key] = option
 
 
 def add_food_options(p: argparse.ArgumentParser) -> None:
@@ -140,9 +175,9 @@ def add_food_options(p: argparse.ArgumentParser) -> None:
         ("--poisson", m.poisson, "NU", "Poisson's ratio in [0, 0.5)"),
         ("--density", m.density, "KG_M3", "density [kg/m^3]"),
         ("--g1", m.g1, "G", "Prony g_1 in [0, 1)"),
-        ("--tau1", m.tau1, "S", "Prony tau_1 [s]"),
-        ("--mu", m.mu, "MU", "half-spoon/food friction coefficient"),
-        ("--plate-mu", m.plate_mu, "MU", "plate/food friction coefficient"),
+        ("--tau1", m.tau1, "S", "Prony tau_1 [s], up to 1e6"),
+        ("--mu", m.mu, "MU", "half-spoon/food friction coefficient, 0 to 10"),
+        ("--plate-mu", m.plate_mu, "MU", "plate/food friction coefficient, 0 to 10"),
         ("--yield-strain", 0.0, "EPS", "plastic yield strain; 0 = no plasticity"),
     )
     for option, default, metavar, text in food:

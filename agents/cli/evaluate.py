@@ -18,6 +18,7 @@ from agents.cli.common import (
     UsageError,
     out_dir,
     positive_int,
+    require_distinct,
     require_extra,
     seed,
     writable,
@@ -504,8 +505,24 @@ def _check_ray(args: argparse.Namespace) -> None:
         raise UsageError(f"food-fetch evaluate: no Ray cluster answers at {args.ray!r} ({why})")
 
 
+# The plan of every episode is made before the first runs (about 200 bytes an episode): a
+# million per agent is weeks of one core's fetches, and a typo's extra zeros fail here.
+MAX_EPISODES = 1_000_000
+
+
+def _episodes(text: str) -> int:
+    value = positive_int(text)
+    if value > MAX_EPISODES:
+        raise argparse.ArgumentTypeError(f"{value} is more than {MAX_EPISODES:,} episodes an "
+                                         "agent")
+    return value
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     require_extra("evaluate", "figures")
+    log = args.episodes_log if args.episodes_log != args.resume else None  # resumed in place
+    require_distinct("food-fetch evaluate", {"--json": args.json, "--csv": args.csv,
+                                             "--episodes-log": log, "--resume": args.resume})
     from agents.evaluate import StopSignals, summarize
     from fetch_env import ENV_IDS  # (not agents.train.env_ids: that module needs PyYAML)
 
@@ -554,8 +571,8 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    help="keyword arguments of the environment, values read as JSON where "
                    "they are JSON, else as strings (e.g. fetch_impratio=1000 "
                    "estimator=oracle); checked before any episode runs")
-    p.add_argument("--episodes", type=positive_int, default=20, metavar="N",
-                   help="episodes (scenes) per agent (default: 20)")
+    p.add_argument("--episodes", type=_episodes, default=20, metavar="N",
+                   help=f"episodes (scenes) per agent, 1 to {MAX_EPISODES:,} (default: 20)")
     p.add_argument("--seed", type=seed, default=0, metavar="S",
                    help="seed of the first scene, 0 to 2**32-1 (default: 0)")
     p.add_argument("--workers", type=positive_int, default=1, metavar="K",

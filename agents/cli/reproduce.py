@@ -33,9 +33,11 @@ PREFIX = "food-fetch reproduce"
 
 def parse_list(text: str, allowed: tuple[str, ...] | None, what: str) -> list[str]:
     """A comma-separated option's items (``allowed`` names the valid ones, if any)."""
-    items = [s.strip() for s in text.split(",") if s.strip()]
-    if not items:
+    items = [s.strip() for s in text.split(",")]
+    if not any(items):
         raise UsageError(f"{PREFIX}: --{what} is empty")
+    if not all(items):  # "0.1,,0.2": a value lost in typing, not to be skipped unsaid
+        raise UsageError(f"{PREFIX}: --{what} {text!r} has an empty item")
     if allowed is not None:
         bad = [s for s in items if s not in allowed]
         if bad:

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.cli.common import UsageError, finite, write_json
+from agents.cli.common import UsageError, finite, require_distinct, write_json
 from agents.cli.estimate import NAMES, ProbeEstimate, print_report
 from estimators import (
     EstimationError,
@@ -176,7 +176,8 @@ def check_trace_options(args: argparse.Namespace) -> None:
     if args.traces is None:
         given = [o for o, v in (("--L", args.L), ("--theta-0", args.theta_0),
                                 ("--contact-angle", args.contact_angle)) if v is not None]
-        raise UsageError(f"{PROG}: {' and '.join(given)} need --traces FILE (a simulated "
+        raise UsageError(f"{PROG}: {' and '.join(given)} "
+                         f"{'needs' if len(given) == 1 else 'need'} --traces FILE (a simulated "
                          "run knows its geometry)")
     given = list(dict.fromkeys(args.simulation_options))
     if given:
@@ -204,6 +205,7 @@ def _check_contact_angle(angle: float | None, traces: RecordedTraces, probe: str
 def cmd_estimate_traces(args: argparse.Namespace) -> int:
     """``food-fetch estimate --traces FILE``: load, estimate, report (and ``--json``)."""
     check_trace_options(args)
+    require_distinct(PROG, {"--traces": args.traces, "--json": args.json})
     try:
         traces = load_traces(args.traces, L=args.L, theta_0=args.theta_0)
         _check_contact_angle(args.contact_angle, traces, args.probe)

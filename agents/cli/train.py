@@ -34,6 +34,8 @@ ENV_HELP = ("FoodFetch-{Block,Row,TwoRows,Diced}-v0 or -v1, FoodFetch-{Row,TwoRo
 def _log_dir(text: str) -> Path:
     import os
 
+    if not text.strip():  # Path("") is the current directory: say so rather than write there
+        raise argparse.ArgumentTypeError(f"not a directory name: {text!r}")
     p = Path(text)
     probe = p
     while not probe.exists():
