@@ -199,7 +199,17 @@ def _start_workers(pool: ProcessPoolExecutor, after: dict[int, Any]) -> list[int
         started = [pool.submit(int) for _ in range(getattr(pool, "_max_workers", 1))]
         for future in started:
             future.result()
-    finally:
-        for sig, handler in after.items():
-            signal.signal(sig, handler)
+    except BaseException:
+        # a stop sent to the process group also ends the workers still holding it, which
+        # breaks the pool: the stop, not the broken pool, is what the caller is told
+        _set_handlers(after)
+        for sig in held:
+            signal.raise_signal(sig)
+        raise
+    _set_handlers(after)
     return held
+
+
+def _set_handlers(handlers: dict[int, Any]) -> None:
+    for sig, handler in handlers.items():
+        signal.signal(sig, handler)

@@ -9,6 +9,8 @@ import multiprocessing.forkserver
 import os
 import pickle
 import signal
+import subprocess
+import sys
 import threading
 import time
 import warnings
@@ -209,6 +211,41 @@ def test_sigterm_stops_the_pool_and_leaves_no_worker(delay: float, start_method:
     assert _child_pids() <= children_before | _fork_server()
     assert _fork_server_children() == set()
     assert signal.getsignal(signal.SIGTERM) is before
+
+
+_GROUP_STOP = """
+import multiprocessing, os, signal, sys, threading, time
+import fetch_env.parallel as par
+
+def main():
+    par.pool_context = lambda: multiprocessing.get_context(sys.argv[1])
+    def stop():
+        while not multiprocessing.active_children():
+            time.sleep(0.0002)
+        os.killpg(os.getpgid(0), signal.SIGTERM)
+    threading.Thread(target=stop, daemon=True).start()
+    try:
+        par.run_ahead([(time.sleep, (30,))] * 3, 3)
+    except KeyboardInterrupt as exc:
+        print("stopped by", exc)
+
+if __name__ == "__main__":
+    main()
+"""
+
+
+@pytest.mark.parametrize("method", ["fork", "forkserver"])
+def test_a_stop_to_the_process_group_as_workers_start_is_a_stop(method: str,
+                                                                 tmp_path: Path) -> None:
+    """SIGTERM to the whole process group while the pool starts also ends the workers still
+    starting, which breaks the pool: the caller is told of the stop, not of a lost worker."""
+    script = tmp_path / "group_stop.py"
+    script.write_text(_GROUP_STOP)
+    root = str(Path(__file__).resolve().parents[1])
+    done = subprocess.run([sys.executable, str(script), method], capture_output=True, text=True,
+                          timeout=60, start_new_session=True, cwd=root,
+                          env={**os.environ, "PYTHONPATH": root})
+    assert done.stdout.strip() == "stopped by SIGTERM", done.stdout + done.stderr
 
 
 def test_errors_come_back_in_their_place(start_method: str) -> None:
