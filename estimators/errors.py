@@ -145,7 +145,7 @@ def check_traces(
             f"time t is {kind} at index {idx + 1}: t[{idx}]={tt[idx]!r}, "
             f"t[{idx + 1}]={tt[idx + 1]!r}; t must be strictly increasing"
         )
-    if dt.min() < MIN_SAMPLE_INTERVAL:
+    if dt.size and dt.min() < MIN_SAMPLE_INTERVAL * (1.0 - 1e-6):  # (1 MHz's own rounding)
         idx = int(np.argmin(dt))
         raise EstimationError(
             f"time t steps by {dt[idx]:.3g} s at index {idx + 1}, below "

@@ -365,7 +365,7 @@ def _check_columns(path: str | os.PathLike[str], table: _Table) -> Array:
         j = int(back[0]) + 1
         raise TraceFileError(path, f"time not strictly increasing at {table.where(j)}: "
                              f"t = {float(t[j])!r} s after t = {float(t[j - 1])!r} s")
-    fast = np.flatnonzero(np.diff(t) < MIN_SAMPLE_INTERVAL)
+    fast = np.flatnonzero(np.diff(t) < MIN_SAMPLE_INTERVAL * (1.0 - 1e-6))
     if fast.size:
         j = int(fast[0]) + 1
         raise TraceFileError(path, f"time steps by {float(t[j] - t[j - 1]):.3g} s at "

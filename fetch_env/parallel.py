@@ -65,8 +65,11 @@ def run_ahead(tasks: Sequence[Task], workers: int) -> list[Any]:
             futures = [pool.submit(_capture_remote, fn, *args) for fn, args in tasks]
             done = [f.result() for f in futures]
     except BrokenProcessPool as exc:
-        raise WorkerLostError(f"a probe worker process died mid-run ({exc}); if it ran "
-                              "out of memory, run with fewer workers") from None
+        hint = "if it ran out of memory, run with fewer workers"
+        if pool_context().get_start_method() != "fork":  # workers run the main script again
+            hint += ("; in a script, start the work under if __name__ == \"__main__\": "
+                     "(workers here run the main script again)")
+        raise WorkerLostError(f"a probe worker process died mid-run ({exc}); {hint}") from None
     seen: set[tuple[type[Warning], str]] = set()
     for _, caught in done:
         for key in caught:
@@ -142,12 +145,13 @@ def stopping(pool: ProcessPoolExecutor) -> Iterator[None]:
     arriving while a worker is being forked would leave that worker running, unrecorded by
     the pool) and delivered once all are recorded.  Within the block SIGTERM and SIGHUP
     raise ``KeyboardInterrupt`` (:func:`raise_interrupt`).  On leaving, Ctrl-C, SIGTERM and
-    SIGHUP are ignored while what has not started is cancelled, every worker is terminated
-    and joined, and the pool's manager thread has ended (a worker mid-task would otherwise
-    run on after a stop; ``timeout`` and a process-group kill send a stop more than once,
-    and a second one raising here would print a traceback); then the handlers found are put
-    back.  Signal handlers can be set only in the main thread: elsewhere the pool is stopped
-    the same way with the handlers left alone.
+    SIGHUP are ignored while what has not started is cancelled and every worker is
+    terminated (killed if it has not ended within ``STOP_GRACE`` s) and joined, and the
+    pool's manager thread, which reaps workers too, is given as long to end (a worker
+    mid-task would otherwise run on after a stop; ``timeout`` and a process-group kill send
+    a stop more than once, and a second one raising here would print a traceback); then the
+    handlers found are put back.  Signal handlers can be set only in the main thread:
+    elsewhere the pool is stopped the same way with the handlers left alone.
     """
     main = threading.current_thread() is threading.main_thread()
     stops = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -155,29 +159,39 @@ def stopping(pool: ProcessPoolExecutor) -> Iterator[None]:
     during = {sig: raise_interrupt if sig != signal.SIGINT else handler
               for sig, handler in before.items()}
     try:
-        held = _start_workers(pool, during)
-        for sig in held:
+        for sig in _start_workers(pool, during):
             signal.raise_signal(sig)
         yield
     finally:
         for sig in before:
             signal.signal(sig, signal.SIG_IGN)
-        alive = list((getattr(pool, "_processes", None) or {}).values())
-        manager = getattr(pool, "_executor_manager_thread", None)
-        pool.shutdown(wait=False, cancel_futures=True)
-        for proc in alive:
-            proc.terminate()
-        for proc in alive:
+        _stop_pool(pool)
+        _set_handlers(before)
+
+
+STOP_GRACE = 5.0  # [s] a terminated worker's time to end before it is killed
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Cancel what has not started, end every worker and wait for the manager thread."""
+    alive = list((getattr(pool, "_processes", None) or {}).values())
+    manager = getattr(pool, "_executor_manager_thread", None)
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in alive:
+        proc.terminate()
+    for proc in alive:
+        proc.join(STOP_GRACE)
+        if proc.exitcode is None:  # a worker that ignores SIGTERM (one still starting)
+            proc.kill()
             proc.join()
-        if manager is not None:  # it reaps the workers too: done only once it has ended
-            manager.join(timeout=10.0)
-        for sig, handler in before.items():
-            signal.signal(sig, handler)
+    if manager is not None:
+        manager.join(timeout=STOP_GRACE)
 
 
 def _start_workers(pool: ProcessPoolExecutor, after: dict[int, Any]) -> list[int]:
-    """Start every worker of ``pool`` (one no-op task each) with the signals in ``after``
-    held back, then set ``after``'s handlers and return the signals held, in order.
+    """Start every worker of ``pool`` (one no-op task each: the pool forks, or asks the fork
+    server for, each worker within ``submit``) with the signals in ``after`` held back
+    (those not ignored), then set ``after``'s handlers and return the signals held.
 
     A worker forked from this process meanwhile inherits the holding handler until its
     initializer runs: there a held signal does what it does by default (a ``terminate``
@@ -193,17 +207,15 @@ def _start_workers(pool: ProcessPoolExecutor, after: dict[int, Any]) -> list[int
         if signum not in held:
             held.append(signum)
 
-    for sig in after:
-        signal.signal(sig, hold)
+    for sig, handler in after.items():
+        if handler is not signal.SIG_IGN:
+            signal.signal(sig, hold)
     try:
-        started = [pool.submit(int) for _ in range(getattr(pool, "_max_workers", 1))]
-        for future in started:
-            future.result()
+        for _ in range(getattr(pool, "_max_workers", 1)):
+            pool.submit(int)
     except BaseException:
-        # a stop sent to the process group also ends the workers still holding it, which
-        # breaks the pool: the stop, not the broken pool, is what the caller is told
         _set_handlers(after)
-        for sig in held:
+        for sig in held:  # a stop that came meanwhile is what the caller is told
             signal.raise_signal(sig)
         raise
     _set_handlers(after)

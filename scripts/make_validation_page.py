@@ -26,7 +26,7 @@ from benchmarks.second_clamp import table as second_clamp_table  # noqa: E402
 from benchmarks.slip_probe import table as slip_table  # noqa: E402
 from benchmarks.validate_estimators import (  # noqa: E402
     RELIABLE_HALF_WIDTHS,
-    coverage_interval,
+    coverage_range,
     cross_validate,
     error_coverage,
     table,
@@ -169,7 +169,7 @@ def readme_table() -> str:
     s0, s1 = runs["0"]["summary"], runs["0.01"]["summary"]
     for label, key, s in (("median abs error", "median", s0), ("95th percentile", "p95", s0),
                           ("95 % interval coverage", "coverage", s0),
-                          ("coverage, 1 % sensor noise", "coverage", s1)):
+                          ("coverage, 1 % noise", "coverage", s1)):
         cells = [_coverage_cell(s[k]) if key == "coverage" else f"{100 * s[k][key]:.2f} %"
                  for k in ("g1", "tau1", "mu", "K1")]
         rows.append(f"| {label} | " + " | ".join(cells) + " |")
@@ -177,15 +177,16 @@ def readme_table() -> str:
     rows.append(f"\n{meta['machine']}, {meta['cpus']} cores: `{meta['command'].strip()}`")
     tuned = json.loads((DATA / "tuning_precise_uncal_noise0.json").read_text())["meta"]["n"]
     rows.append(f"\nTuned on the {tuned} foods of seed {TUNING_SEED}, reported on the 64 of "
-                f"seed {REPORTING_SEED} (`fetch_env.food_space`); in brackets, the exact 95 % "
-                "range of the true coverage." + _block_env_line())
+                f"seed {REPORTING_SEED} (`fetch_env.food_space`); brackets: the true coverage's "
+                "exact 95 % range." + _block_env_line())
     return "\n".join(rows)
 
 
 def _coverage_cell(s: dict[str, Any]) -> str:
-    """"95 % (87-99)": a coverage and the 95 % range of the true one, given the count."""
-    lo, hi = coverage_interval(s["coverage"], s["n_intervals"])
-    return f"{100 * s['coverage']:.0f} % ({100 * lo:.0f}-{100 * hi:.0f})"
+    """"95 % (86.9-99.0)": a coverage and the 95 % range of the true one, given the count."""
+    if not s["n_intervals"]:
+        return "-"
+    return f"{100 * s['coverage']:.0f} % ({coverage_range(s['coverage'], s['n_intervals'])})"
 
 
 def _block_env_line() -> str:

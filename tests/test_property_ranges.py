@@ -918,7 +918,8 @@ def test_friction_on_valid_slides(s: tuple[np.ndarray, ...], window: int | None,
 @st.composite
 def finite_traces(draw: st.DrawFn) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Strictly increasing time and arbitrary finite samples (tiny, huge, subnormal): valid
-    input as far as the documented checks go, but no clamp at all."""
+    input as far as the documented checks go (samples past +-1e12 refused by them), but no
+    clamp at all."""
     n = draw(st.integers(0, 80))
     steps = draw(st.lists(st.floats(1e-6, 10.0), min_size=n, max_size=n))
     t = np.cumsum([0.0, *steps])[:n]

@@ -150,6 +150,7 @@ def test_coverage_interval_is_the_exact_binomial_one() -> None:
     assert_allclose(coverage_interval(0.0, 64), (0.0, 1 - 0.025 ** (1 / 64)), rtol=1e-9)
     lo, hi = coverage_interval(61 / 64, 64)
     assert_allclose((lo, hi), (beta.ppf(0.025, 61, 4), beta.ppf(0.975, 62, 3)), rtol=1e-7)
-    assert coverage_text(1.0, 64) == "100 % of 64 (94-100 %)"
-    assert coverage_text(61 / 64, 64) == f"95 % of 64 ({100 * lo:.0f}-{100 * hi:.0f} %)"
+    assert coverage_text(1.0, 64) == "100 % of 64 (94.4-100 %)"
+    assert coverage_text(61 / 64, 64) == f"95 % of 64 ({100 * lo:.1f}-{100 * hi:.1f} %)"
+    assert coverage_text(62 / 64, 64) == "97 % of 64 (89.2-99.6 %)"
     assert coverage_text(math.nan, 0) == "-"

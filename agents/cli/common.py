@@ -4,6 +4,7 @@ parsers, writable-path checks, the food and clamp options and atomic JSON writes
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib.util
 import json
 import math
@@ -122,7 +123,8 @@ def writable(path: str) -> Path:
         raise argparse.ArgumentTypeError(f"directory does not exist: {str(parent)!r}")
     if not os.access(parent, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
         raise argparse.ArgumentTypeError(f"cannot write to {path!r}")
-    _try_a_file_in(parent, path)
+    # the atomic writer puts its temporary file beside what a symlink points to
+    _try_a_file_in(Path(os.path.realpath(p)).parent if p.is_symlink() else parent, path)
     return p
 
 
@@ -137,8 +139,9 @@ def _try_a_file_in(directory: Path, path: str) -> None:
     except OSError as exc:
         raise argparse.ArgumentTypeError(f"cannot write to {path!r}: "
                                          f"{exc.strerror or exc}") from None
-    os.close(fd)
-    os.unlink(tmp)
+    with contextlib.suppress(OSError):  # a directory that takes files but keeps them
+        os.close(fd)
+        os.unlink(tmp)
 
 
 def require_distinct(command: str, paths: dict[str, Path | str | None]) -> None:

@@ -163,7 +163,8 @@ def _log_path(args: argparse.Namespace) -> Path | None:
     """Where the episode log goes: ``--resume``'s file, ``--episodes-log``, else beside
     ``--json`` (``x.json`` -> ``x.episodes.jsonl``), else beside ``--csv``, else nowhere."""
     if args.resume is not None:
-        if args.episodes_log is not None and args.episodes_log != args.resume:
+        if args.episodes_log is not None and (os.path.realpath(args.episodes_log)
+                                              != os.path.realpath(args.resume)):
             raise UsageError("food-fetch evaluate: --resume continues its own log; leave out "
                              "--episodes-log")
         if args.dataset is not None:
@@ -179,7 +180,10 @@ def _log_path(args: argparse.Namespace) -> Path | None:
 
     for out in (args.json, args.csv):
         if out is not None and not written_as_is(out):  # not beside /dev/stdout
-            return out.with_name(out.stem + ".episodes.jsonl")
+            log = out.with_name(out.stem + ".episodes.jsonl")
+            require_distinct("food-fetch evaluate", {"--json": args.json, "--csv": args.csv,
+                                                     "the episode log beside them": log})
+            return log
     return None
 
 
@@ -520,7 +524,9 @@ def _episodes(text: str) -> int:
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     require_extra("evaluate", "figures")
-    log = args.episodes_log if args.episodes_log != args.resume else None  # resumed in place
+    resumed_in_place = (args.episodes_log is not None and args.resume is not None
+                        and os.path.realpath(args.episodes_log) == os.path.realpath(args.resume))
+    log = None if resumed_in_place else args.episodes_log
     require_distinct("food-fetch evaluate", {"--json": args.json, "--csv": args.csv,
                                              "--episodes-log": log, "--resume": args.resume})
     from agents.evaluate import StopSignals, summarize
