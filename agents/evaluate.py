@@ -17,7 +17,6 @@ import signal
 import threading
 import time
 from collections.abc import Callable, Sequence
-from contextlib import suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -404,17 +403,9 @@ def _close_pool(pool: Any, clean: bool) -> None:
     if clean:
         pool.shutdown(wait=True)
         return
-    procs = list((getattr(pool, "_processes", None) or {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
-    for proc in procs:
-        with suppress(Exception):
-            proc.terminate()
-    for proc in procs:
-        with suppress(Exception):
-            proc.join(5)
-            if proc.is_alive():
-                proc.kill()
-                proc.join(5)
+    from fetch_env.parallel import end_workers
+
+    end_workers(pool)
 
 
 # ------------------------------------------------------------------------------ statistics

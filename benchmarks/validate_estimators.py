@@ -225,17 +225,15 @@ def coverage_interval(coverage: float, n: int, level: float = 0.95) -> tuple[flo
     return float(ci.low), float(ci.high)
 
 
-def coverage_text(coverage: float, n: int) -> str:
-    """"95 % of 64 (86.9-99.0 %)": the coverage, the intervals counted and how sure it is."""
+def coverage_text(coverage: float, n: int, counted: bool = True) -> str:
+    """"95 % of 64 (86.9-99.0 %)": the coverage, the intervals counted (unless not
+    ``counted``: "95 % (86.9-99.0)") and how sure it is, the range in per cent to a tenth."""
     if not n:
         return "-"
-    return f"{100 * coverage:.0f} % of {n} ({coverage_range(coverage, n)} %)"
-
-
-def coverage_range(coverage: float, n: int) -> str:
-    """:func:`coverage_interval` in per cent to a tenth ("94.4-100"; 62 of 64: "89.2-99.6")."""
     lo, hi = coverage_interval(coverage, n)
-    return "-".join("100" if v == 1.0 else f"{100 * v:.1f}" for v in (lo, hi))
+    bounds = "-".join("100" if v == 1.0 else f"{100 * v:.1f}" for v in (lo, hi))
+    return (f"{100 * coverage:.0f} % of {n} ({bounds} %)" if counted
+            else f"{100 * coverage:.0f} % ({bounds})")
 
 
 def table(summary: dict[str, Any], title: str) -> str:

@@ -20,15 +20,15 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from multiprocessing.context import BaseContext
 from typing import Any
 
 from fetch_env.clipping import rewarn
 from fetch_env.errors import require, require_int
 
-__all__ = ["Task", "WorkerLostError", "outcome", "pool_context", "raise_interrupt",
-           "run_ahead", "stopping", "worker_signals"]
+__all__ = ["Task", "WorkerLostError", "end_workers", "outcome", "pool_context",
+           "raise_interrupt", "run_ahead", "stopping", "worker_signals"]
 
 # One simulation: a module-level function (picklable) and its arguments.
 Task = tuple[Callable[..., Any], tuple[Any, ...]]
@@ -58,7 +58,8 @@ def run_ahead(tasks: Sequence[Task], workers: int) -> list[Any]:
     require(workers >= 1, "workers", workers, ">= 1")
     if workers == 1 or len(tasks) <= 1 or multiprocessing.current_process().daemon:
         return [_capture(fn, *args) for fn, args in tasks]
-    pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=pool_context(),
+    context = pool_context()
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=context,
                                initializer=worker_signals)
     try:
         with stopping(pool):
@@ -66,7 +67,7 @@ def run_ahead(tasks: Sequence[Task], workers: int) -> list[Any]:
             done = [f.result() for f in futures]
     except BrokenProcessPool as exc:
         hint = "if it ran out of memory, run with fewer workers"
-        if pool_context().get_start_method() != "fork":  # workers run the main script again
+        if context.get_start_method() != "fork":  # its workers run the main script again
             hint += ("; in a script, start the work under if __name__ == \"__main__\": "
                      "(workers here run the main script again)")
         raise WorkerLostError(f"a probe worker process died mid-run ({exc}); {hint}") from None
@@ -165,25 +166,30 @@ def stopping(pool: ProcessPoolExecutor) -> Iterator[None]:
     finally:
         for sig in before:
             signal.signal(sig, signal.SIG_IGN)
-        _stop_pool(pool)
+        end_workers(pool)
         _set_handlers(before)
 
 
 STOP_GRACE = 5.0  # [s] a terminated worker's time to end before it is killed
 
 
-def _stop_pool(pool: ProcessPoolExecutor) -> None:
-    """Cancel what has not started, end every worker and wait for the manager thread."""
+def end_workers(pool: ProcessPoolExecutor) -> None:
+    """Shut ``pool`` down after a stop or a lost worker: cancel what has not started,
+    terminate every worker (a worker mid-task would otherwise run on), kill one that has not
+    ended within ``STOP_GRACE`` s (one still starting may ignore SIGTERM), join them, and
+    give the pool's manager thread, which reaps workers too, as long to end."""
     alive = list((getattr(pool, "_processes", None) or {}).values())
     manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for proc in alive:
-        proc.terminate()
+        with suppress(Exception):  # a worker already gone, or its handle closed
+            proc.terminate()
     for proc in alive:
-        proc.join(STOP_GRACE)
-        if proc.exitcode is None:  # a worker that ignores SIGTERM (one still starting)
-            proc.kill()
-            proc.join()
+        with suppress(Exception):
+            proc.join(STOP_GRACE)
+            if proc.exitcode is None:
+                proc.kill()
+                proc.join(STOP_GRACE)
     if manager is not None:
         manager.join(timeout=STOP_GRACE)
 

@@ -1053,6 +1053,12 @@ def slide_times(config: ProbeConfig) -> list[float]:
             for m in _alternating_steps(config.slip_repeats)]
 
 
+def _slide_run(piece: Piece, config: ProbeConfig, geometry: Geometry | None,
+               slide_time: float) -> SimResult:
+    """One slide of the slip probe, ``slide_time`` long (a probe worker's task too)."""
+    return slip_run(piece, dataclasses.replace(config, slide_time=slide_time), geometry)
+
+
 @dataclass
 class _SlideFit:
     """mu from one slide of the slip probe."""
@@ -1073,7 +1079,7 @@ def _slip_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | None, no
     failures: list[str] = []
     for j, slide_time in enumerate(slide_times(config)):
         try:
-            res = (slip_run(piece, dataclasses.replace(config, slide_time=slide_time), geometry)
+            res = (_slide_run(piece, config, geometry, slide_time)
                    if ahead is None else outcome(ahead[j]))
         except SimulationDivergedError as exc:
             failures.append(str(exc))
@@ -1274,8 +1280,7 @@ def _runs_ahead(piece: Piece, config: ProbeConfig, geometry: Geometry | None,
     (the clamps, the slides), each a result or the error it raised."""
     tasks: list[Task] = [(relaxation_run, (piece, config, geometry, strain))
                          for strain in repeat_strains(config)]
-    tasks += [(slip_run, (piece, dataclasses.replace(config, slide_time=t), geometry))
-              for t in slide_times(config)]
+    tasks += [(_slide_run, (piece, config, geometry, t)) for t in slide_times(config)]
     results = run_ahead(tasks, workers)
     n = config.relaxation_repeats
     return results[:n], results[n:]

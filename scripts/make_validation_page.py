@@ -26,7 +26,7 @@ from benchmarks.second_clamp import table as second_clamp_table  # noqa: E402
 from benchmarks.slip_probe import table as slip_table  # noqa: E402
 from benchmarks.validate_estimators import (  # noqa: E402
     RELIABLE_HALF_WIDTHS,
-    coverage_range,
+    coverage_text,
     cross_validate,
     error_coverage,
     table,
@@ -170,7 +170,8 @@ def readme_table() -> str:
     for label, key, s in (("median abs error", "median", s0), ("95th percentile", "p95", s0),
                           ("95 % interval coverage", "coverage", s0),
                           ("coverage, 1 % noise", "coverage", s1)):
-        cells = [_coverage_cell(s[k]) if key == "coverage" else f"{100 * s[k][key]:.2f} %"
+        cells = [coverage_text(s[k]["coverage"], s[k]["n_intervals"], counted=False)
+                 if key == "coverage" else f"{100 * s[k][key]:.2f} %"
                  for k in ("g1", "tau1", "mu", "K1")]
         rows.append(f"| {label} | " + " | ".join(cells) + " |")
     meta = runs["0"]["meta"]
@@ -180,13 +181,6 @@ def readme_table() -> str:
                 f"seed {REPORTING_SEED} (`fetch_env.food_space`); brackets: the true coverage's "
                 "exact 95 % range." + _block_env_line())
     return "\n".join(rows)
-
-
-def _coverage_cell(s: dict[str, Any]) -> str:
-    """"95 % (86.9-99.0)": a coverage and the 95 % range of the true one, given the count."""
-    if not s["n_intervals"]:
-        return "-"
-    return f"{100 * s['coverage']:.0f} % ({coverage_range(s['coverage'], s['n_intervals'])})"
 
 
 def _block_env_line() -> str:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import multiprocessing
 import multiprocessing.forkserver
+import multiprocessing.resource_tracker
 import os
 import pickle
 import signal
@@ -178,6 +179,13 @@ def _fork_server() -> set[int]:
     return {pid} if pid else set()
 
 
+def _pool_services() -> set[int]:
+    """The processes multiprocessing keeps for every pool, not workers: the fork server and
+    the resource tracker it starts with it (both stay until this process ends)."""
+    tracker = getattr(multiprocessing.resource_tracker._resource_tracker, "_pid", None)
+    return _fork_server() | ({tracker} if tracker else set())
+
+
 def _fork_server_children() -> set[int]:
     """The fork server's children (its workers), as the kernel has them."""
     pids: set[int] = set()
@@ -208,7 +216,7 @@ def test_sigterm_stops_the_pool_and_leaves_no_worker(delay: float, start_method:
         run_ahead([(_sleep, (30.0,)), (_sleep, (30.0,)), (_sleep, (30.0,))], 2)
     assert time.monotonic() - start < 10.0
     assert multiprocessing.active_children() == []
-    assert _child_pids() <= children_before | _fork_server()
+    assert _child_pids() <= children_before | _pool_services()
     assert _fork_server_children() == set()
     assert signal.getsignal(signal.SIGTERM) is before
 

@@ -524,9 +524,8 @@ def _episodes(text: str) -> int:
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     require_extra("evaluate", "figures")
-    resumed_in_place = (args.episodes_log is not None and args.resume is not None
-                        and os.path.realpath(args.episodes_log) == os.path.realpath(args.resume))
-    log = None if resumed_in_place else args.episodes_log
+    # with --resume, --episodes-log may only name the same log (_log_path refuses another)
+    log = args.episodes_log if args.resume is None else None
     require_distinct("food-fetch evaluate", {"--json": args.json, "--csv": args.csv,
                                              "--episodes-log": log, "--resume": args.resume})
     from agents.evaluate import StopSignals, summarize
