@@ -33,7 +33,7 @@ import os
 import platform
 import sys
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
@@ -389,7 +389,7 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool, form: str = "li
     if check:
         held_out = cross_validate(records[0], records, form=form,
                                   coverage=error_coverage(preset),
-                                  reliable_half_width=RELIABLE_HALF_WIDTHS.get(preset))
+                                  reliability=RELIABILITY.get(preset))
         for run, held in zip(runs, held_out, strict=True):
             del held["records"]
             print(table(held, f"{run.name}, 8-fold cross-validation"))
@@ -400,7 +400,7 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool, form: str = "li
     try:
         cal = fit_models(records[0], records, source=source, form=form,
                          coverage=error_coverage(preset),
-                         reliable_half_width=RELIABLE_HALF_WIDTHS.get(preset))
+                         reliability=RELIABILITY.get(preset))
     except EstimationError as exc:
         raise SystemExit(f"validate_estimators: {exc}") from None
     table_ = json.loads(CALIBRATION_FILE.read_text()) if CALIBRATION_FILE.exists() else {}
@@ -454,28 +454,38 @@ def error_coverage(preset: str) -> float:
     return ERROR_COVERAGE.get(preset, DEFAULT_ERROR_COVERAGE)
 
 
-# The widest 95 % intervals with which a measurement counts as reliable, by preset (its error
+# What makes a measurement count as reliable, by preset: the widest 95 % intervals (its error
 # model's ``reliable_half_width``; elsewhere fetch_env.probes.RELIABLE_HALF_WIDTH, 2.5 % for
-# each).  The precise probes' error model tells the foods its probes miss apart well enough
-# for g1 and mu to allow +-5 %; tau1 keeps +-2.5 %.  Chosen on their 512 tuning foods (256
-# with 1 % noise), 8-fold cross-validated (fold seeds 0-2): without noise no food with an
-# error over 5 % called reliable, the narrowest 1.09-1.13 times past its width; foods with
-# every error under 2 % called unreliable 22-24 % (34-36 % at 2.5 % for all three, 24-25 %
-# with g1 and mu at 4 %, 32-33 % with tau1 at 2 %).  With 1 % noise 62-65 % of those, and
-# 1 of the 21 over 5 %: a 23 mm sphere (tuning food 137) whose three noisy slides all read
-# mu 15 % high, with intervals of +-2.2-2.5 %, narrower than any width that leaves the flag
-# of use; no diagnostic sets it apart (its noise share is the other foods').
-RELIABLE_HALF_WIDTHS: dict[str, dict[str, float]] = {
-    "precise": {"g1": 0.05, "tau1": 0.025, "mu": 0.05}}
+# each) and the largest diagnostics (``reliable_diagnostics``).  The precise probes repeat
+# the clamp seven times and the slide three, and the repeats' own disagreement says which
+# foods they miss better than any width: a food whose clamps scatter (a soft, large cube
+# that shifts in the blades as it relaxes) or whose hold a linear drift pulls far is
+# missed, one whose clamps agree is not, whatever foods like it do.  So the rule is: the
+# clamps' spread of log g1 at most 0.03 and of log tau1 at most 0.06, a drift that moves
+# log tau1 by at most 0.1, the slides' spread of mu at most 0.01, mu's interval within
+# +-7 % (needed with sensor noise, whose misses no spread shows) and g1's and tau1's within
+# +-10 % (a backstop; it changes no tuning food's flag).  Chosen on the 512 tuning foods
+# (256 with 1 % noise), 8-fold cross-validated, fold seeds 0-2, as the rule that calls no
+# food with a g1, tau1 or mu error over 5 % reliable, with or without noise, and the fewest
+# foods with every error under 2 % unreliable: without noise 0 of 21 over 5 % reliable and
+# 55-57 of 451 under 2 % unreliable (12 %; the widths alone, 5 % for g1 and mu and 2.5 % for
+# tau1, flagged 100-106, 22-23 %); with 1 % noise 0 of 21 and 77-79 of 170-173 (45 %;
+# the widths alone 1 of 21 reliable and 105-110).  The spreads alone, without mu's limits,
+# flag 17-18 of the 451 and miss no food without noise, and 12 of the 21 with noise.
+RELIABILITY: dict[str, dict[str, dict[str, float]]] = {
+    "precise": {"reliable_half_width": {"g1": 0.1, "tau1": 0.1, "mu": 0.07},
+                "reliable_diagnostics": {"repeat_sd_log_g1": 0.03, "repeat_sd_log_tau1": 0.06,
+                                         "drift_log_tau1": 0.1, "mu_trials": 0.01}}}
 
 
 def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
                source: str = "", keep: set[int] | None = None, form: str = "linear",
                coverage: float = DEFAULT_ERROR_COVERAGE,
-               reliable_half_width: dict[str, float] | None = None) -> Calibration:
+               reliability: Mapping[str, Mapping[str, float]] | None = None) -> Calibration:
     """The calibration of ``form`` fitted on ``cal_records`` (a run without noise) and its
     error model on every run in ``runs`` (e.g. without and with noise), using only foods in
-    ``keep``; ``coverage`` and ``reliable_half_width`` as
+    ``keep``; ``coverage`` and ``reliability`` (``reliable_half_width`` and
+    ``reliable_diagnostics``, :data:`RELIABILITY`) as
     :func:`estimators.calibration.fit_error_model`'s."""
     def use(r: dict[str, Any]) -> bool:
         return "crash" not in r and (keep is None or r["food"]["index"] in keep)
@@ -484,19 +494,18 @@ def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]
     cal = fit_calibration(_uncalibrated_foods(used), source=source,
                           diagnostics=[r.get("diagnostics") or {} for r in used], form=form)
     rows = [row for run in runs for i, row in error_rows([r for r in run if use(r)], cal)]
-    em = fit_error_model(rows, source=source, coverage=coverage,
-                         reliable_half_width=reliable_half_width)
+    em = fit_error_model(rows, source=source, coverage=coverage, **(reliability or {}))
     return dataclasses.replace(cal, error_model=em)
 
 
 def cross_validate(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
                    folds: int = 8, seed: int = 0, form: str = "linear",
                    coverage: float = DEFAULT_ERROR_COVERAGE,
-                   reliable_half_width: dict[str, float] | None = None
+                   reliability: Mapping[str, Mapping[str, float]] | None = None
                    ) -> list[dict[str, Any]]:
     """Held-out records of each run: the foods split into ``folds`` (seeded), each fold's
     records recomputed with the calibration and error model (``coverage`` and
-    ``reliable_half_width``, as :func:`fit_models`) fitted on the other folds
+    ``reliability``, as :func:`fit_models`) fitted on the other folds
     (:func:`held_out_record`)."""
     index = sorted({r["food"]["index"] for r in cal_records})
     fold_of = dict(zip(np.random.default_rng(seed).permutation(index),
@@ -505,7 +514,7 @@ def cross_validate(cal_records: list[dict[str, Any]], runs: list[list[dict[str, 
     for k in range(folds):
         keep = {i for i, f in fold_of.items() if f != k}
         model = fit_models(cal_records, runs, keep=keep, form=form, coverage=coverage,
-                           reliable_half_width=reliable_half_width)
+                           reliability=reliability)
         for j, run in enumerate(runs):
             out[j] += [held_out_record(r, model) for r in run
                        if "crash" not in r and fold_of.get(r["food"]["index"]) == k]

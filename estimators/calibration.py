@@ -506,6 +506,11 @@ class ErrorModel:
         its own (chosen on the reference foods: how narrow an interval must be to exclude
         the foods the probes missed depends on how well the model tells them apart); the
         probes' default elsewhere (``fetch_env.probes.RELIABLE_HALF_WIDTH``).
+    reliable_diagnostics: by diagnostic name, the largest absolute value with which a
+        measurement still counts as reliable (a diagnostic missing counts as past it):
+        the food's own signs that the probe did not measure it reproducibly, e.g. its
+        repeated clamps' spread, which single out the foods the probes miss better than
+        a width predicted from foods like it (chosen on the reference foods too).
     n_foods, source: for the record.
     """
 
@@ -517,12 +522,14 @@ class ErrorModel:
     source: str = ""
     inputs: Mapping[str, Sequence[str]] = field(default_factory=dict)
     reliable_half_width: Mapping[str, float] = field(default_factory=dict)
+    reliable_diagnostics: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for name in ("centre", "spread", "coefficients", "multiplier", "inputs",
-                     "reliable_half_width"):
+                     "reliable_half_width", "reliable_diagnostics"):
             mapping(f"error model {name}", getattr(self, name))
         _check_reliable_half_width(self.reliable_half_width)
+        _check_reliable_diagnostics(self.reliable_diagnostics)
         for t, names in self.inputs.items():
             if t not in ERROR_INPUTS or tuple(names) not in allowed_error_inputs(t):
                 raise EstimationError(f"error model inputs {names!r} of {t!r} are not one of "
@@ -569,9 +576,8 @@ class ErrorModel:
         return float(self.multiplier[target] * math.exp(min(log_sd, 5.0)))
 
     def to_dict(self) -> dict[str, object]:
-        own = ({"reliable_half_width": {t: float(w) for t, w in
-                                        self.reliable_half_width.items()}}
-               if self.reliable_half_width else {})
+        own = {k: {t: float(w) for t, w in getattr(self, k).items()}
+               for k in ("reliable_half_width", "reliable_diagnostics") if getattr(self, k)}
         return {"inputs": {t: list(self.input_names(t)) for t in self.targets},
                 **{k: {t: (list(map(float, v)) if isinstance(v, Sequence) else float(v))
                        for t, v in getattr(self, k).items()}
@@ -595,13 +601,14 @@ class ErrorModel:
                 raise EstimationError(f"error model {k} must be a mapping, got {v!r}")
             parts[k] = dict(v)
         own = {t: tuple(v) for t, v in inputs.items() if tuple(v) != ERROR_INPUTS[t]}
-        widths = data.get("reliable_half_width", {})
-        if not isinstance(widths, Mapping):
-            raise EstimationError(f"error model reliable_half_width must be a mapping, got "
-                                  f"{widths!r}")
+        rules = {}
+        for k in ("reliable_half_width", "reliable_diagnostics"):
+            v = data.get(k, {})
+            if not isinstance(v, Mapping):
+                raise EstimationError(f"error model {k} must be a mapping, got {v!r}")
+            rules[k] = dict(v)
         return cls(**parts, n_foods=int(data.get("n_foods", 0)),  # type: ignore[arg-type]
-                   source=str(data.get("source", "")), inputs=own,
-                   reliable_half_width=dict(widths))
+                   source=str(data.get("source", "")), inputs=own, **rules)
 
 
 def _check_reliable_half_width(widths: Mapping[str, float]) -> None:
@@ -611,6 +618,15 @@ def _check_reliable_half_width(widths: Mapping[str, float]) -> None:
         if t not in ERROR_TARGETS or not _finite_numbers([w], 1) or not 0 < w < 1:
             raise EstimationError(f"error model reliable_half_width of {t!r} must be a "
                                   f"target of {ERROR_TARGETS} and in (0, 1), got {w!r}")
+
+
+def _check_reliable_diagnostics(limits: Mapping[str, float]) -> None:
+    """Refuse limits (:attr:`ErrorModel.reliable_diagnostics`) with an empty name or a limit
+    that is not a positive finite number."""
+    for name, v in mapping("error model reliable_diagnostics", limits).items():
+        if not (isinstance(name, str) and name and _finite_numbers([v], 1) and v > 0):
+            raise EstimationError(f"error model reliable_diagnostics of {name!r} must name a "
+                                  f"diagnostic and be a positive number, got {v!r}")
 
 
 ErrorRow = tuple[str, float, Mapping[str, float], Mapping[str, float], Mapping[str, float]]
@@ -623,7 +639,8 @@ DEFAULT_ERROR_COVERAGE = 0.965
 
 def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0,
                     coverage: float = DEFAULT_ERROR_COVERAGE, source: str = "",
-                    reliable_half_width: Mapping[str, float] | None = None) -> ErrorModel:
+                    reliable_half_width: Mapping[str, float] | None = None,
+                    reliable_diagnostics: Mapping[str, float] | None = None) -> ErrorModel:
     """Fit an :class:`ErrorModel` on reference foods.
 
     Args:
@@ -640,17 +657,21 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0,
             tau1 / mu 91.6 / 91.2 / 96.1 % without noise and 93.6 / 93.2 / 91.4 % with 1 %
             noise; 0.965 gave 93.2 / 92.4 / 97.3 % and 96.0 / 96.0 / 93.4 % (ridge 1; 3 and
             10 moved each by under 1.2 points).
-        reliable_half_width: the model's own :attr:`ErrorModel.reliable_half_width`, if any.
+        reliable_half_width, reliable_diagnostics: the model's own
+            :attr:`ErrorModel.reliable_half_width` and :attr:`ErrorModel.
+            reliable_diagnostics`, if any.
 
     Raises:
         EstimationError: fewer usable foods for a target than three times its inputs, or a
-            ``reliable_half_width`` as :class:`ErrorModel` refuses.
+            ``reliable_half_width`` or ``reliable_diagnostics`` as :class:`ErrorModel`
+            refuses.
     """
     _positive_real("ridge", ridge, allow_zero=True)
     _positive_real("coverage", coverage)
     if coverage > 1:
         raise EstimationError(f"coverage must be in (0, 1], got {coverage!r}")
     _check_reliable_half_width(reliable_half_width or {})
+    _check_reliable_diagnostics(reliable_diagnostics or {})
     rows = _records("rows", rows, 5)
     parts: dict[str, dict[str, object]] = {k: {} for k in
                                            ("centre", "spread", "coefficients", "multiplier")}
@@ -676,7 +697,8 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0,
         parts["multiplier"][t] = float(np.quantile(np.abs(r) / sd, coverage))
         n_used = max(n_used, len(r))
     return ErrorModel(**parts, n_foods=n_used, source=source,  # type: ignore[arg-type]
-                      inputs=own, reliable_half_width=dict(reliable_half_width or {}))
+                      inputs=own, reliable_half_width=dict(reliable_half_width or {}),
+                      reliable_diagnostics=dict(reliable_diagnostics or {}))
 
 
 def _fit_inputs(rows: Sequence[ErrorRow], target: str) -> tuple[str, ...]:

@@ -129,7 +129,7 @@ CLAMP_WEIGHT = 0.3  # full fit: clamp residuals against the hold (docs/reproduci
 # a flag that never calls a 5 % miss reliable is then rarely True.  A calibration's error
 # model may carry its own widths, chosen on its own tuning foods
 # (estimators.calibration.ErrorModel.reliable_half_width; the "precise" probes', see
-# benchmarks/validate_estimators.py RELIABLE_HALF_WIDTHS).
+# benchmarks/validate_estimators.py RELIABILITY, which also limits the repeats' spread).
 RELIABLE_HALF_WIDTH = 0.025
 # The probes' systematic uncertainty (sd of the log estimate, beyond what each trace reveals),
 # by parameter: for each tuning food of the validation harness (benchmarks/
@@ -377,11 +377,13 @@ class ProbeOutcome:
 
     @property
     def reliable(self) -> bool:
-        """Both probes gave estimates, and the 95 % intervals of g1, tau1 and mu are each
+        """Both probes gave estimates, the 95 % intervals of g1, tau1 and mu are each
         within ``RELIABLE_HALF_WIDTH`` of the estimate, or the widths the calibration's
         error model was fitted with (``details["reliable_half_width"]``,
         :func:`apply_calibration`; with an error model the intervals include the per-food
-        error it predicts)."""
+        error it predicts), and the diagnostics that model limits
+        (``details["reliable_diagnostics"]``, e.g. the repeated clamps' spread) are within
+        their limits."""
         if not (self.visco_valid and self.friction_valid):
             return False
         widths = self.details.get("reliable_half_width") or {}
@@ -392,7 +394,18 @@ class ProbeOutcome:
                 return False
             if max(hi / v - 1.0, 1.0 - lo / v) > widths.get(name, RELIABLE_HALF_WIDTH):
                 return False
-        return True
+        return not self.diagnostics_past_limits()
+
+    def diagnostics_past_limits(self) -> list[str]:
+        """The diagnostics past the limits of ``details["reliable_diagnostics"]`` (a missing
+        or non-finite one counts as past), as ``name=value``."""
+        values = self.details.get("diagnostics") or {}
+        past = []
+        for name, limit in (self.details.get("reliable_diagnostics") or {}).items():
+            v = values.get(name, math.nan)
+            if not abs(v) <= limit:
+                past.append(f"{name}={v:.3g}")
+        return past
 
 
 def probe_piece_index(pieces: tuple[Piece, ...]) -> int:
@@ -1140,8 +1153,9 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     mu are its ``exp(+-half_width)`` around the calibrated estimate, from the probes'
     diagnostics in ``out.details["diagnostics"]`` (NaN where one is missing),
     ``details["error_half_width"]`` keeps the half-widths, and
-    ``details["reliable_half_width"]`` the model's own widths for :attr:`ProbeOutcome.
-    reliable`, where it has them.
+    ``details["reliable_half_width"]`` and ``details["reliable_diagnostics"]`` the model's
+    own widths and diagnostic limits for :attr:`ProbeOutcome.reliable`, where it has them
+    (a warning names the diagnostics past their limits).
     """
     require_type("calibration", calibration, Calibration, "a Calibration")
     require_type("out", out, ProbeOutcome, "a ProbeOutcome")
@@ -1183,6 +1197,13 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     out.details["error_half_width"] = widths
     if model.reliable_half_width:
         out.details["reliable_half_width"] = dict(model.reliable_half_width)
+    if model.reliable_diagnostics:
+        out.details["reliable_diagnostics"] = dict(model.reliable_diagnostics)
+        past = out.diagnostics_past_limits()
+        if past:
+            out.warnings.append("not reliable: the probes did not measure this food "
+                                f"reproducibly ({', '.join(past)}, past the error model's "
+                                "limits)")
 
 
 _VISCO_SPRINGS = ("K1", "K2", "B")

@@ -25,7 +25,7 @@ from benchmarks.second_clamp import COMBINED  # noqa: E402
 from benchmarks.second_clamp import table as second_clamp_table  # noqa: E402
 from benchmarks.slip_probe import table as slip_table  # noqa: E402
 from benchmarks.validate_estimators import (  # noqa: E402
-    RELIABLE_HALF_WIDTHS,
+    RELIABILITY,
     coverage_text,
     cross_validate,
     error_coverage,
@@ -124,15 +124,19 @@ reporting runs say how well they hold on other foods:
   three slides) the repeats' spread is an input too, for g1 and tau1 also as a hinge at 3 %
   (`estimators.calibration.OPTIONAL_ERROR_INPUTS`: their errors hardly grow with the
   spread below a few per cent and fast above it);
-* how narrow the intervals must be for `reliable`: `fetch_env.probes.RELIABLE_HALF_WIDTH`
-  (2.5 % for each of g1, tau1 and mu), about the widest 95 % interval that calls no tuning
-  food with an error over 5 % reliable, cross-validated (the narrowest such food's
-  half-width moves with how the folds fall: 2.2-5.0 % without noise); the `precise`
-  probes' error model tells those foods apart well enough to carry its own, 5 % for g1
-  and mu and 2.5 % for tau1 (`benchmarks.validate_estimators.RELIABLE_HALF_WIDTHS`,
-  `ErrorModel.reliable_half_width`; cross-validated, fold seeds 0-2: the narrowest such
-  food 1.09-1.13 times past its width without noise; with 1 % noise one food of 21 is
-  inside its widths, a 23 mm sphere whose three noisy slides all read mu 15 % high).
+* what makes a measurement `reliable`: its 95 % intervals within
+  `fetch_env.probes.RELIABLE_HALF_WIDTH` (2.5 % for each of g1, tau1 and mu), about the
+  widest that calls no tuning food with an error over 5 % reliable, cross-validated; and,
+  for the `precise` probes, which repeat every measurement, the repeats' own agreement
+  (`benchmarks.validate_estimators.RELIABILITY`, `ErrorModel.reliable_half_width` and
+  `ErrorModel.reliable_diagnostics`): the seven clamps' spread of log g1 at most 0.03 and
+  of log tau1 at most 0.06, a drift that moves log tau1 by at most 0.1, the three slides'
+  spread of mu at most 0.01, mu's interval within +-7 % and g1's and tau1's within
+  +-10 %.  A food whose clamps scatter is one the probes miss, whatever foods like it do,
+  so these single the misses out better than a predicted width: cross-validated on the
+  tuning foods, fold seeds 0-2, no food with an error over 5 % is called reliable, with or
+  without noise, and 12 % of those with every error under 2 % are called unreliable
+  without noise (22-23 % with widths alone, 5 % for g1 and mu and 2.5 % for tau1).
 
 Intervals of g1, tau1 and mu: `exp(+-half_width)` around the calibrated estimate, the
 half-width from the error model.  Those of K1, K2, B: with the `precise` and `repeated`
@@ -143,11 +147,12 @@ autocorrelation, the estimates' change when the hold window moves, and a systema
 (`fetch_env.probes.PROBE_SYSTEMATIC_SD`) in quadrature on the log scale
 (`estimators.uncertainty`), which covers K1 on nearly every food with intervals of about
 +-30 %.  `reliable` is True only where the intervals of g1, tau1 and mu are each within
-those widths: the per-food error left after the calibration is predicted only roughly, so
-the flag that never calls a 5 % miss reliable is False on many foods the probe measured
-within 2 % (with the `precise` probes about a quarter of them without noise, three
-quarters with 1 % noise, where mu's error is mostly the noise's and no diagnostic tells
-which foods it missed).
+those widths and, for the `precise` probes, the repeats agree within their limits: the
+per-food error left after the calibration is predicted only roughly, so a flag that never
+calls a 5 % miss reliable is False on some foods the probe measured within 2 % (with the
+`precise` probes about one in eight without noise; about half with 1 % noise, where mu's
+error is mostly the noise's, a random miss that no spread of three noisy slides shows
+before it happens, so only a wide interval can flag it).
 
 Each run: `python benchmarks/validate_estimators.py --set SET --n 64 --workers 2
 --preset precise|repeated|measure [--noise 0.01] --out docs/data/validation`; the records, a
@@ -223,7 +228,7 @@ def cross_validated_runs(stems: tuple[str, ...], form: str = "linear"
     preset = runs[0]["meta"]["preset"]
     held = cross_validate(runs[0]["records"], [r["records"] for r in runs], form=form,
                           coverage=error_coverage(preset),
-                          reliable_half_width=RELIABLE_HALF_WIDTHS.get(preset))
+                          reliability=RELIABILITY.get(preset))
     return list(zip(runs, held, strict=True))
 
 
