@@ -284,12 +284,14 @@ def run_tasks(tasks: Sequence[Task], workers: int = 1,
     workers = min(workers, len(tasks))  # an idle worker would only cost its start-up
     try:
         if ray_address is not None:
-            from agents.ray_runner import ClusterLost, run_on_ray
+            from agents.ray_runner import ClusterLost, TaskFailed, run_on_ray
 
             try:
                 run_on_ray(tasks, collect, ray_address, max(workers, 1), ray_batch)
             except ClusterLost as exc:
                 raise _WorkersLost(str(exc)) from None
+            except TaskFailed as exc:
+                raise _EpisodeFailed(exc.task, exc.error) from None
         elif workers <= 1:
             for i, task in enumerate(tasks):
                 try:

@@ -1,5 +1,6 @@
-"""Evaluation episodes as Ray tasks, on a local Ray instance or an existing cluster
-(``food-fetch evaluate --ray [ADDRESS]``; the ``ray`` extra).
+"""Evaluation episodes, and any other independent, seeded work items, as Ray tasks on a
+local Ray instance or an existing cluster (``food-fetch evaluate --ray [ADDRESS]``, the
+estimator validation harness's ``--ray``; the ``ray`` extra).
 
 Each (agent, episode) task is the same independent work item as on the process pool
 (:func:`agents.evaluate.run_episode`: the scene of ``reset(seed)``, the agent seeded alike,
@@ -44,6 +45,15 @@ class RaySetupError(Exception):
 
 class ClusterLost(Exception):
     """The cluster went away, or a task's worker died twice (one line)."""
+
+
+class TaskFailed(Exception):
+    """A task raised on its worker: the task, and ``error`` ("TypeName: first line")."""
+
+    def __init__(self, task: Any, error: str) -> None:
+        super().__init__(error)
+        self.task = task
+        self.error = error
 
 
 def check_address(address: str) -> str:
@@ -136,41 +146,48 @@ def batches(n_tasks: int, batch: int | None, cpus: int) -> list[range]:
     return [range(i, min(i + batch, n_tasks)) for i in range(0, n_tasks, batch)]
 
 
-def _run_batch(tasks: Sequence[Any]) -> list[tuple[str, Any]]:
-    """On a Ray worker: the episodes in order, each ``("ok", record)``; the first that
-    raises ends the batch with ``("error", "TypeName: first line")``."""
+def _episode(task: Any) -> dict[str, Any]:
+    """On a Ray worker: one evaluation episode (:func:`agents.evaluate.run_episode`), the
+    worker set up for it first (its shapes compiled, ``search`` spreading over Ray)."""
     from agents import search
     from agents.evaluate import _init_worker, run_episode
 
     if not search.SPREAD_ON_RAY:  # once per worker process
         _init_worker()
         search.SPREAD_ON_RAY = True
+    return run_episode(task)
+
+
+def _run_batch(tasks: Sequence[Any], run: Callable[[Any], Any]) -> list[tuple[str, Any]]:
+    """On a Ray worker: ``run(task)`` for the tasks in order, each ``("ok", record)``; the
+    first that raises ends the batch with ``("error", "TypeName: first line")``."""
     out: list[tuple[str, Any]] = []
     for task in tasks:
         try:
-            out.append(("ok", run_episode(task)))
+            out.append(("ok", run(task)))
         except Exception as exc:  # reported by the driver, one line
             out.append(("error", f"{type(exc).__name__}: {_first_line(exc)}"))
             break
     return out
 
 
-def run_on_ray(tasks: Sequence[Any], collect: Callable[[int, dict[str, Any]], None],
-               address: str, num_cpus: int, batch: int | None = None) -> None:
-    """Run ``tasks`` as Ray tasks, passing each finished record to ``collect(index, rec)``.
+def run_on_ray(tasks: Sequence[Any], collect: Callable[[int, Any], None],
+               address: str, num_cpus: int, batch: int | None = None,
+               run: Callable[[Any], Any] = _episode) -> None:
+    """Run ``run(task)`` for each of ``tasks`` as Ray tasks (by default an evaluation
+    episode), passing each finished record to ``collect(index, rec)``; ``run`` must pickle
+    (a module-level function, or one of ``__main__``, which Ray sends by value).
 
-    An episode that raises ends the run with :class:`agents.evaluate._EpisodeFailed`; a worker
-    that dies is replaced by Ray and its batch rerun once; a second death, or a head that
-    stops answering for :data:`HEAD_LOST_AFTER_S`, raises :class:`ClusterLost`.  On any exit
-    the unfinished tasks end: cancelled on a cluster, shut down with a local instance.
+    A task that raises ends the run with :class:`TaskFailed`; a worker that dies is
+    replaced by Ray and its batch rerun once; a second death, or a head that stops answering
+    for :data:`HEAD_LOST_AFTER_S`, raises :class:`ClusterLost`.  On any exit the unfinished
+    tasks end: cancelled on a cluster, shut down with a local instance.
     """
-    from agents.evaluate import _EpisodeFailed
-
     with connected(address, num_cpus) as (ray, started):
         cpus = max(1, int(ray.cluster_resources().get("CPU", num_cpus)))
         remote = ray.remote(num_cpus=1, max_retries=1)(_run_batch)
         groups = batches(len(tasks), batch, cpus)
-        refs = {remote.remote([tasks[i] for i in g]): g for g in groups}
+        refs = {remote.remote([tasks[i] for i in g], run): g for g in groups}
         try:
             while refs:
                 ready = _wait(ray, list(refs), address)
@@ -178,7 +195,7 @@ def run_on_ray(tasks: Sequence[Any], collect: Callable[[int, dict[str, Any]], No
                     group = refs.pop(ref)
                     for i, (status, value) in zip(group, _get(ray, ref, address), strict=False):
                         if status == "error":
-                            raise _EpisodeFailed(tasks[i], value)
+                            raise TaskFailed(tasks[i], value)
                         collect(i, value)
         finally:
             # Unfinished tasks: an instance this run started is shut down on exit, which ends

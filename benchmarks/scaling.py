@@ -70,18 +70,20 @@ def ray_rates(cpus: int, episodes: int, batch_sizes: tuple[int, ...]) -> dict[st
     trip of an empty task (o) and the driver's empty-task throughput (D)."""
     import ray
 
-    from agents.ray_runner import _run_batch, batches, connected
+    from agents.ray_runner import _episode, _run_batch, batches, connected
 
     out: dict[str, Any] = {}
     t0 = time.perf_counter()
     with connected("local", cpus):
         out["startup_s"] = time.perf_counter() - t0
         remote = ray.remote(num_cpus=1, max_retries=1)(_run_batch)
-        ray.get([remote.remote(_tasks(1, offset=10_000 + k)) for k in range(cpus)])  # warm
+        ray.get([remote.remote(_tasks(1, offset=10_000 + k), _episode)
+                 for k in range(cpus)])  # warm
         for b in batch_sizes:
             tasks = _tasks(episodes)
             t = time.perf_counter()
-            refs = [remote.remote([tasks[i] for i in g]) for g in batches(len(tasks), b, cpus)]
+            refs = [remote.remote([tasks[i] for i in g], _episode)
+                    for g in batches(len(tasks), b, cpus)]
             results = ray.get(refs)
             wall = time.perf_counter() - t
             assert sum(len(r) for r in results) == episodes

@@ -16,6 +16,9 @@ from the elastic twin).  Writes, under ``--out``:
     python benchmarks/validate_estimators.py --set reporting --n 64 --workers 2 \\
         --out docs/data/validation
 
+``--ray [ADDRESS]`` measures the foods as Ray tasks instead, on a local instance or a
+cluster, with the records of ``--workers 1`` (docs/scaling.md).
+
 Tune on ``--set tuning`` (seed ``TUNING_SEED``), report ``--set reporting``
 (``REPORTING_SEED``): the two designs share no food.  ``--set block`` draws the single pieces
 of the environments' Block scenes (study space, seed ``BLOCK_CALIBRATION_SEED``), which the
@@ -27,10 +30,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
 import math
 import os
 import platform
+import signal
 import sys
 import time
 from collections.abc import Callable, Iterable, Mapping
@@ -44,6 +49,7 @@ from scipy.stats import binomtest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from agents.cli.common import UsageError, add_ray_options, check_ray_options
 from estimators.calibration import (
     DEFAULT_ERROR_COVERAGE,
     ERROR_TARGETS,
@@ -562,7 +568,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="probe settings (default: precise, food-fetch estimate's)")
     p.add_argument("--noise", type=float, default=0.0,
                    help="sensor noise, sd as a share of each trace's peak (default 0)")
-    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--workers", type=int, default=1,
+                   help="processes (default 1); with --ray alone, the local instance's CPUs")
+    add_ray_options(p, "foods")
     p.add_argument("--out", type=Path, default=Path("docs/data/validation"))
     p.add_argument("--name", default=None, help="file stem (default: set_preset_noise)")
     p.add_argument("--resume", action="store_true", help="skip foods already in the .jsonl")
@@ -593,6 +601,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if not 1 <= args.n <= 4096 or not 0 <= args.noise <= 0.5 or args.workers < 1:
         p.error("--n in [1, 4096], --noise in [0, 0.5], --workers >= 1")
+    try:
+        check_ray_options("validate_estimators.py", args)
+    except UsageError as exc:
+        p.error(str(exc).removeprefix("validate_estimators.py: "))
     calibrated = not args.no_calibration and args.preset in PROBE_CALIBRATIONS
     if args.set == "block" and calibrated:
         p.error("--set block holds the foods a Block calibration is fitted on: run it with "
@@ -648,7 +660,54 @@ def _run_foods(foods: list[Food], args: argparse.Namespace, calibrated: bool, js
 
     tasks = [(f, args.preset, args.noise, 7919 * f.index + 1, calibrated, config, geometry)
              for f in foods]
+    if getattr(args, "ray", None) is not None:
+        return run_streamed_on_ray(measure, tasks, args.ray, args.workers, args.ray_batch,
+                                   jsonl, records, report)
     return run_streamed(measure, tasks, args.workers, jsonl, records, report)
+
+
+def _apply(fn: Callable[..., dict[str, Any]], task: tuple[Any, ...]) -> dict[str, Any]:
+    return fn(*task)
+
+
+def run_streamed_on_ray(fn: Callable[..., dict[str, Any]], tasks: list[tuple[Any, ...]],
+                        address: str, cpus: int, batch: int | None, jsonl: Path,
+                        records: list[dict[str, Any]],
+                        report: Callable[[int, dict[str, Any]], None] | None = None) -> str:
+    """:func:`run_streamed` with the tasks as Ray tasks (:func:`agents.ray_runner.
+    run_on_ray`, a local instance of ``cpus`` CPUs or the cluster at ``address``, ``batch``
+    tasks each): each record appended to ``records`` and ``jsonl`` as its batch finishes.
+    Returns "" when all finished, else why it stopped (Ctrl-C, SIGTERM or SIGHUP; a cluster
+    that went away or a worker that died twice; a task that raised)."""
+    import ray
+
+    from agents.evaluate import StopSignals
+    from agents.ray_runner import ClusterLost, RaySetupError, TaskFailed, run_on_ray
+
+    if fn.__module__ != "__main__":  # this file is not installed on the cluster's nodes
+        ray.cloudpickle.register_pickle_by_value(sys.modules[fn.__module__])
+    count = 0
+
+    def collect(_i: int, rec: dict[str, Any]) -> None:
+        nonlocal count
+        count += 1
+        records.append(rec)
+        log.write(json.dumps(rec, default=float) + "\n")
+        log.flush()
+        if report is not None:
+            report(count, rec)
+
+    with StopSignals() as stop, jsonl.open("a") as log:
+        try:
+            run_on_ray(tasks, collect, address, cpus, batch, run=functools.partial(_apply, fn))
+        except KeyboardInterrupt:
+            signum = stop.signum or signal.SIGINT
+            return f"interrupted ({signal.Signals(signum).name})"
+        except (ClusterLost, RaySetupError, TaskFailed) as exc:
+            return str(exc)
+        finally:
+            stop.armed = False
+    return ""
 
 
 def run_streamed(fn: Callable[..., dict[str, Any]], tasks: list[tuple[Any, ...]],

@@ -1,8 +1,8 @@
-"""``evaluate --ray`` and ``train --backend rllib`` on a local Ray instance started by the
-test (2 CPUs, no network): the same numbers as ``--workers 1``, a stop that keeps what
-finished, one line for a bad address, an RLlib run whose exported policy evaluates and
-matches the module it came from.  Skipped where the ``ray`` extra is not installed; the
-RLlib tests where the ``rllib`` extra is not.
+"""``evaluate --ray``, the estimator validation harness's ``--ray`` and ``train --backend
+rllib`` on a local Ray instance started by the test (2 CPUs, no network): the same numbers as
+``--workers 1``, a stop that keeps what finished, one line for a bad address, an RLlib run
+whose exported policy evaluates and matches the module it came from.  Skipped where the
+``ray`` extra is not installed; the RLlib tests where the ``rllib`` extra is not.
 
 Cheap settings: FoodFetch-Block-v0 with the oracle estimator (no probe simulations) for the
 stop and equality runs; the search agent on one scene to check its simulations spread over
@@ -126,6 +126,57 @@ def test_sigterm_on_ray_keeps_what_finished(tmp_path: Path) -> None:
     kept = [json.loads(x) for x in log.read_text().splitlines()[1:]]
     assert part["interrupted"] and 3 <= part["episodes_finished"] < 60
     assert part["episodes_finished"] == len(kept)
+
+
+def _harness(*args: str) -> list[str]:
+    return [sys.executable, str(ROOT / "benchmarks" / "validate_estimators.py"), "--set",
+            "tuning", "--preset", "env", "--no-calibration", *args]
+
+
+def _without_timing(rec: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in rec.items() if not k.startswith(("wall_", "cpu_"))}
+
+
+def test_validation_harness_on_ray_gives_the_records_of_one_worker(tmp_path: Path) -> None:
+    """The estimator validation harness's foods as Ray tasks: every record the one a single
+    process writes, but for its timings."""
+    code, _, err = _run(_harness("--n", "3", "--out", "one"), tmp_path)
+    assert code == 0, err
+    code, _, err = _run(_harness("--n", "3", "--out", "ray", "--ray", "--workers", "2"),
+                        tmp_path)
+    assert code == 0 and "Traceback" not in err, err
+    one, ray = (json.loads((tmp_path / d / "tuning_env_uncal_noise0.json").read_text())
+                for d in ("one", "ray"))
+    assert len(one["records"]) == 3
+    assert [_without_timing(r) for r in ray["records"]] == [
+        _without_timing(r) for r in one["records"]]
+
+
+@pytest.mark.parametrize(("extra", "message"), [
+    (["--ray", "127.0.0.1:1"], "no Ray cluster answers at '127.0.0.1:1'"),
+    (["--ray", "no-port"], "bad Ray address 'no-port'"),
+    (["--ray-batch", "2"], "--ray-batch needs --ray"),
+])
+def test_bad_ray_settings_stop_the_harness_before_any_food(tmp_path: Path, extra: list[str],
+                                                           message: str) -> None:
+    code, _, err = _run(_harness("--n", "2", "--out", "out", *extra), tmp_path)
+    assert code == 2 and message in err.splitlines()[-1] and "Traceback" not in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_sigterm_stops_the_harness_on_ray_and_keeps_what_finished(tmp_path: Path) -> None:
+    proc = _start(_harness("--n", "40", "--out", "out", "--ray", "--workers", "2",
+                           "--ray-batch", "1"), tmp_path)
+    log = tmp_path / "out" / "tuning_env_uncal_noise0.jsonl"
+    _wait_for_lines(log, 3, proc)
+    proc.send_signal(signal.SIGTERM)
+    err = _stderr_once_ended(proc, 60, "SIGTERM")
+    assert proc.returncode == 130, err
+    assert "interrupted (SIGTERM)" in err and "Traceback" not in err, err
+    kept = log.read_text().splitlines()
+    part = json.loads((tmp_path / "out" / "tuning_env_uncal_noise0.json").read_text())
+    assert 3 <= len(kept) < 40 and len(part["records"]) == len(kept)
+    assert part["meta"]["stopped"] == "interrupted (SIGTERM)"
 
 
 def test_batches_cover_every_task_once() -> None:

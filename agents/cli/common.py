@@ -202,6 +202,39 @@ def add_food_options(p: argparse.ArgumentParser) -> None:
                    help="seed for every random choice (default: 0)")
 
 
+def add_ray_options(p: argparse.ArgumentParser, items: str, note: str = "") -> None:
+    """``--ray [ADDRESS]`` and ``--ray-batch N``: ``items`` (e.g. "episodes") run as Ray
+    tasks, with ``note`` said after the help's "Same numbers as --workers 1"."""
+    p.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",
+                   help=f"run the {items} as Ray tasks (the ray extra): alone, on a local Ray "
+                   "instance of --workers CPUs; with ADDRESS ('auto', HOST:PORT of a head, "
+                   "ray://HOST:PORT), on that cluster, every node having food-fetch "
+                   f"installed. Same numbers as --workers 1{note}")
+    p.add_argument("--ray-batch", type=positive_int, default=None, metavar="N",
+                   help=f"with --ray, {items} per Ray task (default: about four tasks per "
+                   f"cluster CPU, at most 8 {items} each)")
+
+
+def check_ray_options(command: str, args: argparse.Namespace) -> None:
+    """``--ray``: the extra installed, the address well formed and answering, checked before
+    any work (:class:`UsageError`, one line naming ``command``); sets ``args.ray`` to the
+    address as Ray takes it."""
+    if args.ray is None:
+        if args.ray_batch is not None:
+            raise UsageError(f"{command}: --ray-batch needs --ray")
+        return
+    require_extra(f"{command.removeprefix('food-fetch ')} --ray", "ray")
+    from agents.ray_runner import RaySetupError, _reachable, check_address
+
+    try:
+        args.ray = check_address(args.ray)
+    except RaySetupError as exc:
+        raise UsageError(f"{command}: {exc}") from None
+    why = _reachable(args.ray)
+    if why is not None:
+        raise UsageError(f"{command}: no Ray cluster answers at {args.ray!r} ({why})")
+
+
 def make_material(args: argparse.Namespace) -> Any:
     """The :class:`fetch_env.materials.Material` of the food options (validated there)."""
     from fetch_env.materials import Material

@@ -16,6 +16,8 @@ from agents.cli.common import (
     DEFAULT_ENV,
     EXIT_USAGE,
     UsageError,
+    add_ray_options,
+    check_ray_options,
     out_dir,
     positive_int,
     require_distinct,
@@ -491,24 +493,6 @@ def _note_caps(args: argparse.Namespace, n_tasks: int) -> None:
               f"to --episodes {args.episodes}", file=sys.stderr)
 
 
-def _check_ray(args: argparse.Namespace) -> None:
-    """``--ray``: the extra installed, the address well formed and answering (one line)."""
-    if args.ray is None:
-        if args.ray_batch is not None:
-            raise UsageError("food-fetch evaluate: --ray-batch needs --ray")
-        return
-    require_extra("evaluate --ray", "ray")
-    from agents.ray_runner import RaySetupError, _reachable, check_address
-
-    try:
-        args.ray = check_address(args.ray)
-    except RaySetupError as exc:
-        raise UsageError(f"food-fetch evaluate: {exc}") from None
-    why = _reachable(args.ray)
-    if why is not None:
-        raise UsageError(f"food-fetch evaluate: no Ray cluster answers at {args.ray!r} ({why})")
-
-
 # The plan of every episode is made before the first runs (about 200 bytes an episode): a
 # million per agent is weeks of one core's fetches, and a typo's extra zeros fail here.
 MAX_EPISODES = 1_000_000
@@ -535,7 +519,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.env not in ids:
         raise UsageError(f"food-fetch evaluate: unknown environment id {args.env!r}; "
                          f"choose from {', '.join(ids)}")
-    _check_ray(args)
+    check_ray_options("food-fetch evaluate", args)
     datasets = _checked_datasets(args)
     env_kwargs = _check_env_kwargs(args.env, args.env_kwargs)
     agents, describe, files = _checked_agents(args)
@@ -584,15 +568,8 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    help="worker processes, at most one per (agent, episode) task (more are "
                    "not started); any K gives the same numbers (default: 1); a worker that "
                    "dies has its tasks rerun once on a fresh pool")
-    p.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",
-                   help="run the episodes as Ray tasks (the ray extra): alone, on a local Ray "
-                   "instance of --workers CPUs; with ADDRESS ('auto', HOST:PORT of a head, "
-                   "ray://HOST:PORT), on that cluster, every node having food-fetch "
-                   "installed. Same numbers as --workers 1; search also spreads each "
-                   "scene's simulations over the cluster")
-    p.add_argument("--ray-batch", type=positive_int, default=None, metavar="N",
-                   help="with --ray, episodes per Ray task (default: about four tasks per "
-                   "cluster CPU, at most 8 episodes each)")
+    add_ray_options(p, "episodes", "; search also spreads each scene's simulations over "
+                    "the cluster")
     p.add_argument("--search-episodes", type=positive_int, default=None, metavar="N",
                    help="run 'search' (~25 simulations per scene) on the first N scenes "
                    "only, at most --episodes; regret is then paired on those (default: all)")
