@@ -70,7 +70,7 @@ def check_address(address: str) -> str:
     return address
 
 
-def _reachable(address: str, timeout: float = 3.0) -> str | None:
+def why_unreachable(address: str, timeout: float = 3.0) -> str | None:
     """Why a HOST:PORT address does not answer (None: it does, or it is local/auto)."""
     if address in (LOCAL, "auto"):
         return None
@@ -90,7 +90,7 @@ def connected(address: str, num_cpus: int) -> Iterator[tuple[Any, bool]]:
         import ray
     except ImportError:
         raise RaySetupError("--ray needs the ray extra: pip install -e '.[ray]'") from None
-    why = _reachable(address)
+    why = why_unreachable(address)
     if why is not None:
         raise RaySetupError(f"no Ray cluster answers at {address!r} ({why})")
     for key, value in {**_RAY_ENV, **(_LOCAL_ENV if address == LOCAL else {})}.items():
@@ -198,10 +198,11 @@ def run_on_ray(tasks: Sequence[Any], collect: Callable[[int, Any], None],
                             raise TaskFailed(tasks[i], value)
                         collect(i, value)
         finally:
-            # Unfinished tasks: an instance this run started is shut down on exit, which ends
-            # them; cancelling them first can race with a task's reply and abort Ray's core
-            # worker ("Tried to complete task that was not pending", ray-project/ray#54846),
-            # so only a cluster's tasks, which would run on, are cancelled.
+            # Unfinished tasks: where this run connected (a local instance or a cluster), it
+            # disconnects on exit (ray.shutdown), which ends its job's tasks; cancelling them
+            # first can race with a task's reply and abort Ray's core worker ("Tried to
+            # complete task that was not pending", ray-project/ray#54846).  So only where the
+            # caller connected, and the job goes on, are they cancelled.
             for ref in refs if not started else ():
                 with suppress(Exception):
                     ray.cancel(ref, force=True)
@@ -215,7 +216,7 @@ def _wait(ray: Any, refs: list[Any], address: str) -> list[Any]:
         ready, _ = ray.wait(refs, num_returns=1, timeout=0.5)
         if ready:
             return ready
-        alive = address == LOCAL or _reachable(address, timeout=1.0) is None
+        alive = address == LOCAL or why_unreachable(address, timeout=1.0) is None
         if alive:
             silent_since = None
             continue

@@ -81,7 +81,7 @@ def run_variant(name: str, config: ProbeConfig, foods: list[Food], work: Path,
     records = list(done.values())
     todo = [f for f in foods if f.index not in done]
     run = argparse.Namespace(preset="measure", noise=0.0, workers=workers)
-    stopped = ve._run_foods(todo, run, False, path, records, config, geometry) if todo else ""
+    stopped = ve._run_foods(todo, run, False, path, records, config, geometry)
     return records, stopped
 
 

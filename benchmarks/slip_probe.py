@@ -98,7 +98,7 @@ def run_variant(name: str, config: ProbeConfig, foods: list[Food], work: Path, w
     done = ve._done_indices(path)
     records = list(done.values())
     tasks = [(f, config) for f in foods if f.index not in done]
-    stopped = ve.run_streamed(food_errors, tasks, workers, path, records) if tasks else ""
+    stopped = ve.run_streamed(food_errors, tasks, workers, path, records)
     return records, stopped
 
 

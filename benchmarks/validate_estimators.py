@@ -38,11 +38,11 @@ import platform
 import signal
 import sys
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
-from typing import Any
+from typing import IO, Any, TypedDict
 
 import numpy as np
 from scipy.stats import binomtest
@@ -50,6 +50,7 @@ from scipy.stats import binomtest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from agents.cli.common import UsageError, add_ray_options, check_ray_options
+from agents.evaluate import StopSignals
 from estimators.calibration import (
     DEFAULT_ERROR_COVERAGE,
     ERROR_TARGETS,
@@ -468,7 +469,7 @@ def error_coverage(preset: str) -> float:
 # that shifts in the blades as it relaxes) or whose hold a linear drift pulls far is
 # missed, one whose clamps agree is not, whatever foods like it do.  So the rule is: the
 # clamps' spread of log g1 at most 0.03 and of log tau1 at most 0.06, a drift that moves
-# log tau1 by at most 0.1, the slides' spread of mu at most 0.01, mu's interval within
+# log tau1 by at most 0.1, half the log-range of the slides' mu at most 0.01, mu's interval within
 # +-7 % (needed with sensor noise, whose misses no spread shows) and g1's and tau1's within
 # +-10 % (a backstop; it changes no tuning food's flag).  Chosen on the 512 tuning foods
 # (256 with 1 % noise), 8-fold cross-validated, fold seeds 0-2, as the rule that calls no
@@ -478,7 +479,15 @@ def error_coverage(preset: str) -> float:
 # tau1, flagged 100-106, 22-23 %); with 1 % noise 0 of 21 and 77-79 of 170-173 (45 %;
 # the widths alone 1 of 21 reliable and 105-110).  The spreads alone, without mu's limits,
 # flag 17-18 of the 451 and miss no food without noise, and 12 of the 21 with noise.
-RELIABILITY: dict[str, dict[str, dict[str, float]]] = {
+class Reliability(TypedDict, total=False):
+    """A preset's rule for ``reliable`` (:func:`estimators.calibration.fit_error_model`'s
+    arguments of these names)."""
+
+    reliable_half_width: dict[str, float]
+    reliable_diagnostics: dict[str, float]
+
+
+RELIABILITY: dict[str, Reliability] = {
     "precise": {"reliable_half_width": {"g1": 0.1, "tau1": 0.1, "mu": 0.07},
                 "reliable_diagnostics": {"repeat_sd_log_g1": 0.03, "repeat_sd_log_tau1": 0.06,
                                          "drift_log_tau1": 0.1, "mu_trials": 0.01}}}
@@ -487,7 +496,7 @@ RELIABILITY: dict[str, dict[str, dict[str, float]]] = {
 def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
                source: str = "", keep: set[int] | None = None, form: str = "linear",
                coverage: float = DEFAULT_ERROR_COVERAGE,
-               reliability: Mapping[str, Mapping[str, float]] | None = None) -> Calibration:
+               reliability: Reliability | None = None) -> Calibration:
     """The calibration of ``form`` fitted on ``cal_records`` (a run without noise) and its
     error model on every run in ``runs`` (e.g. without and with noise), using only foods in
     ``keep``; ``coverage`` and ``reliability`` (``reliable_half_width`` and
@@ -507,7 +516,7 @@ def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]
 def cross_validate(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
                    folds: int = 8, seed: int = 0, form: str = "linear",
                    coverage: float = DEFAULT_ERROR_COVERAGE,
-                   reliability: Mapping[str, Mapping[str, float]] | None = None
+                   reliability: Reliability | None = None
                    ) -> list[dict[str, Any]]:
     """Held-out records of each run: the foods split into ``folds`` (seeded), each fold's
     records recomputed with the calibration and error model (``coverage`` and
@@ -570,7 +579,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="sensor noise, sd as a share of each trace's peak (default 0)")
     p.add_argument("--workers", type=int, default=1,
                    help="processes (default 1); with --ray alone, the local instance's CPUs")
-    add_ray_options(p, "foods")
+    add_ray_options(p, "foods", batch_default=RAY_BATCH)
     p.add_argument("--out", type=Path, default=Path("docs/data/validation"))
     p.add_argument("--name", default=None, help="file stem (default: set_preset_noise)")
     p.add_argument("--resume", action="store_true", help="skip foods already in the .jsonl")
@@ -633,13 +642,22 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     stopped = _run_foods(foods, args, calibrated, jsonl, records)
     meta["wall_s"] = time.perf_counter() - t0
+    with StopSignals() as late:  # a stop while the results are written waits for them
+        late.armed = False
+        return _write_results(args, name, records, meta, jsonl, stopped)
+
+
+def _write_results(args: argparse.Namespace, name: str, records: list[dict[str, Any]],
+                   meta: dict[str, Any], jsonl: Path, stopped: str) -> int:
+    """Write the run's outputs (those of the finished foods where it ``stopped``, saying
+    why) and return the exit code: 0, 130 for a stop signal, 1 for a lost worker."""
     if stopped:
         meta["stopped"] = stopped
         if records:
             write_outputs(args.out, name, records, meta)
         print(f"validate_estimators: {stopped}; {len(records)} of {args.n} foods finished, kept "
               f"in {jsonl} (rerun with --resume to finish)", file=sys.stderr)
-        return 130 if "interrupted" in stopped else 1
+        return 130 if stopped.startswith("interrupted") else 1
     summary = write_outputs(args.out, name, records, meta)
     print(table(summary, name))
     return 0
@@ -648,10 +666,14 @@ def main(argv: list[str] | None = None) -> int:
 def _run_foods(foods: list[Food], args: argparse.Namespace, calibrated: bool, jsonl: Path,
                records: list[dict[str, Any]], config: ProbeConfig | None = None,
                geometry: Geometry | None = None) -> str:
-    """Measure ``foods`` on a process pool (``config`` and ``geometry`` replacing the preset's
-    probe settings and the default end-effector, as in :func:`measure`), appending each
-    record to ``jsonl`` as it finishes (:func:`run_streamed`).  Returns "" when all
-    finished, else why it stopped."""
+    """Measure ``foods`` on a process pool, or as Ray tasks with ``args.ray`` (``config``
+    and ``geometry`` replacing the preset's probe settings and the default end-effector, as
+    in :func:`measure`), appending each record to ``jsonl`` as it finishes
+    (:func:`run_streamed`, :func:`run_streamed_on_ray`).  Returns "" when all finished (or
+    none was left to run), else why it stopped."""
+    if not foods:
+        return ""
+
     def report(i: int, rec: dict[str, Any]) -> None:
         e = rec.get("error", {})
         print(f"[{i}/{len(foods)}] food {rec['food']['index']} {rec['food']['shape']} "
@@ -666,8 +688,34 @@ def _run_foods(foods: list[Food], args: argparse.Namespace, calibrated: bool, js
     return run_streamed(measure, tasks, args.workers, jsonl, records, report)
 
 
+class _Keeper:
+    """Keeps each finished record: written and flushed to the ``.jsonl`` first, then added to
+    ``records`` (so a stop between the two never leaves a record the file lacks), then
+    passed to ``report`` with its count."""
+
+    def __init__(self, log: IO[str], records: list[dict[str, Any]],
+                 report: Callable[[int, dict[str, Any]], None] | None) -> None:
+        self.log, self.records, self.report, self.count = log, records, report, 0
+
+    def __call__(self, rec: dict[str, Any]) -> None:
+        self.log.write(json.dumps(rec, default=float) + "\n")
+        self.log.flush()
+        self.records.append(rec)
+        self.count += 1
+        if self.report is not None:
+            self.report(self.count, rec)
+
+
 def _apply(fn: Callable[..., dict[str, Any]], task: tuple[Any, ...]) -> dict[str, Any]:
+    """``fn(*task)``: a Ray task's work (a module-level function pickles; a lambda would
+    too, but not by name in a traceback)."""
     return fn(*task)
+
+
+# Foods per Ray task by default: one.  A precise food takes ~6 s of a core against Ray's
+# ~1 ms a task, and a batch's records come back only when all of its foods finish, so a
+# larger one would only lose more work to a stop.
+RAY_BATCH = 1
 
 
 def run_streamed_on_ray(fn: Callable[..., dict[str, Any]], tasks: list[tuple[Any, ...]],
@@ -676,9 +724,9 @@ def run_streamed_on_ray(fn: Callable[..., dict[str, Any]], tasks: list[tuple[Any
                         report: Callable[[int, dict[str, Any]], None] | None = None) -> str:
     """:func:`run_streamed` with the tasks as Ray tasks (:func:`agents.ray_runner.
     run_on_ray`, a local instance of ``cpus`` CPUs or the cluster at ``address``, ``batch``
-    tasks each): each record appended to ``records`` and ``jsonl`` as its batch finishes.
+    tasks each, :data:`RAY_BATCH` by default): each record kept as its batch finishes.
     Returns "" when all finished, else why it stopped (Ctrl-C, SIGTERM or SIGHUP; a cluster
-    that went away or a worker that died twice; a task that raised)."""
+    that went away or a worker that died twice; a task that raised, with its food)."""
     import ray
 
     from agents.evaluate import StopSignals
@@ -686,27 +734,19 @@ def run_streamed_on_ray(fn: Callable[..., dict[str, Any]], tasks: list[tuple[Any
 
     if fn.__module__ != "__main__":  # this file is not installed on the cluster's nodes
         ray.cloudpickle.register_pickle_by_value(sys.modules[fn.__module__])
-    count = 0
-
-    def collect(_i: int, rec: dict[str, Any]) -> None:
-        nonlocal count
-        count += 1
-        records.append(rec)
-        log.write(json.dumps(rec, default=float) + "\n")
-        log.flush()
-        if report is not None:
-            report(count, rec)
-
     with StopSignals() as stop, jsonl.open("a") as log:
+        keep = _Keeper(log, records, report)
         try:
-            run_on_ray(tasks, collect, address, cpus, batch, run=functools.partial(_apply, fn))
-        except KeyboardInterrupt:
-            signum = stop.signum or signal.SIGINT
-            return f"interrupted ({signal.Signals(signum).name})"
-        except (ClusterLost, RaySetupError, TaskFailed) as exc:
-            return str(exc)
-        finally:
+            run_on_ray(tasks, lambda _i, rec: keep(rec), address, cpus, batch or RAY_BATCH,
+                       run=functools.partial(_apply, fn))
             stop.armed = False
+        except KeyboardInterrupt:
+            stop.armed = False
+            return f"interrupted ({signal.Signals(stop.signum or signal.SIGINT).name})"
+        except TaskFailed as exc:
+            return f"food {exc.task[0].index} failed on Ray: {exc.error}"
+        except (ClusterLost, RaySetupError) as exc:
+            return str(exc)
     return ""
 
 
@@ -714,29 +754,28 @@ def run_streamed(fn: Callable[..., dict[str, Any]], tasks: list[tuple[Any, ...]]
                  workers: int, jsonl: Path, records: list[dict[str, Any]],
                  report: Callable[[int, dict[str, Any]], None] | None = None) -> str:
     """``fn(*task)`` for each of ``tasks`` on a pool of ``workers`` processes, each record
-    appended to ``records`` and to ``jsonl`` as it finishes (and passed to ``report`` with
-    its count).  Returns "" when all finished, else why it stopped: Ctrl-C, SIGTERM or
-    SIGHUP (handled alike), or a worker that died (the pool breaks instead of hanging); what
-    finished is in ``jsonl`` either way.  While the pool shuts down, further stop signals are
-    ignored (``timeout`` and a process-group kill send one to the main process more than
-    once, and a second one raising during the pool's exit printed a traceback); the
-    handlers in place before are restored on return (:func:`fetch_env.parallel.stopping`)."""
+    written to ``jsonl`` and appended to ``records`` as it finishes (and passed to
+    ``report`` with its count).  Returns "" when all finished (or there was nothing to
+    run), else why it stopped: Ctrl-C, SIGTERM or SIGHUP (handled alike), or a worker that
+    died (the pool breaks instead of hanging); what finished is in ``jsonl`` either way.
+    While the pool shuts down, further stop signals are ignored (``timeout`` and a
+    process-group kill send one to the main process more than once, and a second one
+    raising during the pool's exit printed a traceback); the handlers in place before are
+    restored on return (:func:`fetch_env.parallel.stopping`)."""
+    if not tasks:  # no pool to start
+        return ""
     pool = ProcessPoolExecutor(workers, mp_context=pool_context(), initializer=worker_signals)
     try:
         with stopping(pool), jsonl.open("a") as log:
-            futures = [pool.submit(fn, *task) for task in tasks]
-            for i, fut in enumerate(as_completed(futures), 1):
-                rec = fut.result()
-                records.append(rec)
-                log.write(json.dumps(rec, default=float) + "\n")
-                log.flush()
-                if report is not None:
-                    report(i, rec)
+            keep = _Keeper(log, records, report)
+            for fut in as_completed([pool.submit(fn, *task) for task in tasks]):
+                keep(fut.result())
     except KeyboardInterrupt as exc:
         return f"interrupted ({exc.args[0] if exc.args else 'SIGINT'})"
     except BrokenProcessPool:
         return "a worker process died"
     return ""
+
 
 if __name__ == "__main__":
     raise SystemExit(main())

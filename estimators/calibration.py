@@ -662,9 +662,9 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0,
             reliable_diagnostics`, if any.
 
     Raises:
-        EstimationError: fewer usable foods for a target than three times its inputs, or a
+        EstimationError: fewer usable foods for a target than three times its inputs, a
             ``reliable_half_width`` or ``reliable_diagnostics`` as :class:`ErrorModel`
-            refuses.
+            refuses, or a limit on a diagnostic that no row has.
     """
     _positive_real("ridge", ridge, allow_zero=True)
     _positive_real("coverage", coverage)
@@ -673,6 +673,10 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0,
     _check_reliable_half_width(reliable_half_width or {})
     _check_reliable_diagnostics(reliable_diagnostics or {})
     rows = _records("rows", rows, 5)
+    for name in reliable_diagnostics or {}:  # (a misspelt name would flag every food)
+        if not any(isinstance(row[3], Mapping) and name in row[3] for row in rows):
+            raise EstimationError(f"error model reliable_diagnostics names {name!r}, which "
+                                  f"none of the {len(rows)} foods' diagnostics has")
     parts: dict[str, dict[str, object]] = {k: {} for k in
                                            ("centre", "spread", "coefficients", "multiplier")}
     n_used = 0

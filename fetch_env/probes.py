@@ -397,12 +397,19 @@ class ProbeOutcome:
         return not self.diagnostics_past_limits()
 
     def diagnostics_past_limits(self) -> list[str]:
-        """The diagnostics past the limits of ``details["reliable_diagnostics"]`` (a missing
-        or non-finite one counts as past), as ``name=value``."""
+        """The diagnostics past the limits of ``details["reliable_diagnostics"]``, as
+        ``name=value``, or ``name missing`` where the probes gave none (which counts as
+        past, as does a value that is not a finite number)."""
         values = self.details.get("diagnostics") or {}
         past = []
         for name, limit in (self.details.get("reliable_diagnostics") or {}).items():
-            v = values.get(name, math.nan)
+            if name not in values:
+                past.append(f"{name} missing")
+                continue
+            try:
+                v = float(values[name])
+            except (TypeError, ValueError):
+                v = math.nan
             if not abs(v) <= limit:
                 past.append(f"{name}={v:.3g}")
         return past
@@ -1115,6 +1122,10 @@ def _slip_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | None, no
     if not fits:
         raise EstimationError(failures[0])
     fit = _median_of_slides(fits)
+    if len(fits) < config.slip_repeats:
+        # a spread of the slides that survived would say they agree when they could not be
+        # compared: left out, so an error model that reads it gives no interval
+        del fit.diagnostics["mu_trials"]
     out.details.setdefault("diagnostics", {}).update(fit.diagnostics)
     out.estimates["mu"] = fit.mu
     out.intervals["mu"] = fit.interval
@@ -1130,7 +1141,7 @@ def _median_of_slides(fits: list[_SlideFit]) -> _SlideFit:
     the slide nearest it giving the warnings; the log-sd of its interval is the median
     slide's, and the slides' spread (their log-sd) added in quadrature.  The diagnostics are
     the slides' means, with ``mu_trials``, half the log-range of the slides' mu (0 for one
-    slide)."""
+    slide; :func:`_slip_probe` drops it where a slide asked for gave no mu)."""
     mus = np.array([f.mu for f in fits])
     mu = float(np.median(mus))
     nearest = fits[int(np.argmin(np.abs(np.log(mus / mu))))]
@@ -1274,10 +1285,7 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     out = ProbeOutcome(estimates=dict.fromkeys(PARAM_NAMES, math.nan), visco_valid=False,
                        friction_valid=False, wall_time=0.0, piece_index=k,
                        intervals=dict.fromkeys(PARAM_NAMES, nan))
-    # The drift diagnostics cost a fit: computed where the calibration reads them, or where
-    # none is applied (a run that a calibration may be fitted on).
-    drift = calibration is None or not set(DRIFT_DIAGNOSTICS).isdisjoint(
-        calibration.feature_names)
+    drift = reads_drift(calibration)
     clamps, slides = (None, None) if workers == 1 else _runs_ahead(piece, config, geometry,
                                                                     workers)
     out.details["workers"] = workers
@@ -1293,6 +1301,18 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     out.wall_time = time.perf_counter() - wall
     _add_cpu(out, "cpu_time", cpu)
     return out
+
+
+def reads_drift(calibration: Calibration | None) -> bool:
+    """Whether the probes must compute the drift diagnostics, which cost a fit: where the
+    calibration reads them (as features, or in its error model's reliability limits), or
+    where none is applied (a run that a calibration may be fitted on)."""
+    if calibration is None:
+        return True
+    read = set(calibration.feature_names)
+    if calibration.error_model is not None:
+        read |= set(calibration.error_model.reliable_diagnostics)
+    return not read.isdisjoint(DRIFT_DIAGNOSTICS)
 
 
 def _runs_ahead(piece: Piece, config: ProbeConfig, geometry: Geometry | None,

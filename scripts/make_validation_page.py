@@ -130,8 +130,8 @@ reporting runs say how well they hold on other foods:
   for the `precise` probes, which repeat every measurement, the repeats' own agreement
   (`benchmarks.validate_estimators.RELIABILITY`, `ErrorModel.reliable_half_width` and
   `ErrorModel.reliable_diagnostics`): the seven clamps' spread of log g1 at most 0.03 and
-  of log tau1 at most 0.06, a drift that moves log tau1 by at most 0.1, the three slides'
-  spread of mu at most 0.01, mu's interval within +-7 % and g1's and tau1's within
+  of log tau1 at most 0.06, a drift that moves log tau1 by at most 0.1, half the log-range
+  of the three slides' mu at most 0.01, mu's interval within +-7 % and g1's and tau1's within
   +-10 %.  A food whose clamps scatter is one the probes miss, whatever foods like it do,
   so these single the misses out better than a predicted width: cross-validated on the
   tuning foods, fold seeds 0-2, no food with an error over 5 % is called reliable, with or

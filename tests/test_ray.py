@@ -179,6 +179,48 @@ def test_sigterm_stops_the_harness_on_ray_and_keeps_what_finished(tmp_path: Path
     assert part["meta"]["stopped"] == "interrupted (SIGTERM)"
 
 
+def test_a_task_that_raises_on_ray_ends_the_run_keeping_what_finished(tmp_path: Path) -> None:
+    """run_on_ray with a function of the caller's: the tasks before the one that raises
+    come back, then TaskFailed names that task and its error in one line."""
+    script = """
+from agents.ray_runner import TaskFailed, run_on_ray
+
+def half(x):
+    if x == 3:
+        raise ValueError(f"no half of {x}")
+    return x / 2
+
+got = {}
+try:
+    run_on_ray([2, 4, 3, 6], got.__setitem__, "local", 1, batch=1, run=half)
+except TaskFailed as exc:
+    print("failed", exc.task, exc.error, sorted(got.items()))
+"""
+    code, out, err = _run([sys.executable, "-c", script], tmp_path)
+    assert code == 0, err
+    assert "failed 3 ValueError: no half of 3 [(0, 1.0), (1, 2.0)]" in out, (out, err)
+
+
+def test_evaluate_reports_a_failed_ray_task_as_its_episode(monkeypatch: pytest.MonkeyPatch
+                                                           ) -> None:
+    """A task that raised on a Ray worker ends the evaluation like one that raised here:
+    EvaluationInterrupted naming the agent, episode and seed, exit code 1."""
+    from agents import ray_runner
+    from agents.evaluate import EvaluationInterrupted, Task, run_tasks
+
+    tasks = [Task("study", "FoodFetch-Block-v0", i, 100 + i) for i in range(3)]
+
+    def fake(tasks_: list[Task], collect: Any, *_args: Any, **_kw: Any) -> None:
+        collect(0, {"episode": 0})
+        raise ray_runner.TaskFailed(tasks_[1], "RuntimeError: boom")
+
+    monkeypatch.setattr(ray_runner, "run_on_ray", fake)
+    with pytest.raises(EvaluationInterrupted) as info:
+        run_tasks(tasks, ray_address="local")
+    assert info.value.code == 1 and info.value.results == [{"episode": 0}]
+    assert info.value.reason == "'study' episode 1 (seed 101) failed: RuntimeError: boom"
+
+
 def test_batches_cover_every_task_once() -> None:
     from agents.ray_runner import batches
 
@@ -302,10 +344,10 @@ def test_a_cluster_that_goes_away_ends_the_run_with_one_line_and_keeps_what_fini
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True)
     try:
-        from agents.ray_runner import _reachable
+        from agents.ray_runner import why_unreachable
 
         deadline = time.monotonic() + TIMEOUT
-        while _reachable(f"127.0.0.1:{port}") is not None and time.monotonic() < deadline:
+        while why_unreachable(f"127.0.0.1:{port}") is not None and time.monotonic() < deadline:
             time.sleep(0.5)
         time.sleep(3)  # the head's raylet registers after its GCS answers
         argv = _cli("evaluate", "--env", "FoodFetch-Block-v0", "--env-kwargs",

@@ -202,17 +202,21 @@ def add_food_options(p: argparse.ArgumentParser) -> None:
                    help="seed for every random choice (default: 0)")
 
 
-def add_ray_options(p: argparse.ArgumentParser, items: str, note: str = "") -> None:
+def add_ray_options(p: argparse.ArgumentParser, items: str, note: str = "",
+                    batch_default: int | None = None) -> None:
     """``--ray [ADDRESS]`` and ``--ray-batch N``: ``items`` (e.g. "episodes") run as Ray
-    tasks, with ``note`` said after the help's "Same numbers as --workers 1"."""
+    tasks, with ``note`` said after the help's "Same numbers as --workers 1";
+    ``batch_default``: the batch the caller takes when none is given (None:
+    :func:`agents.ray_runner.batches`' default)."""
     p.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",
                    help=f"run the {items} as Ray tasks (the ray extra): alone, on a local Ray "
                    "instance of --workers CPUs; with ADDRESS ('auto', HOST:PORT of a head, "
                    "ray://HOST:PORT), on that cluster, every node having food-fetch "
                    f"installed. Same numbers as --workers 1{note}")
+    default = (f"{batch_default}" if batch_default is not None else
+               f"about four tasks per cluster CPU, at most 8 {items} each")
     p.add_argument("--ray-batch", type=positive_int, default=None, metavar="N",
-                   help=f"with --ray, {items} per Ray task (default: about four tasks per "
-                   f"cluster CPU, at most 8 {items} each)")
+                   help=f"with --ray, {items} per Ray task (default: {default})")
 
 
 def check_ray_options(command: str, args: argparse.Namespace) -> None:
@@ -223,14 +227,15 @@ def check_ray_options(command: str, args: argparse.Namespace) -> None:
         if args.ray_batch is not None:
             raise UsageError(f"{command}: --ray-batch needs --ray")
         return
-    require_extra(f"{command.removeprefix('food-fetch ')} --ray", "ray")
-    from agents.ray_runner import RaySetupError, _reachable, check_address
+    if importlib.util.find_spec("ray") is None:
+        raise UsageError(f"{command}: --ray needs the ray extra: pip install -e '.[ray]'")
+    from agents.ray_runner import RaySetupError, check_address, why_unreachable
 
     try:
         args.ray = check_address(args.ray)
     except RaySetupError as exc:
         raise UsageError(f"{command}: {exc}") from None
-    why = _reachable(args.ray)
+    why = why_unreachable(args.ray)
     if why is not None:
         raise UsageError(f"{command}: no Ray cluster answers at {args.ray!r} ({why})")
 
