@@ -461,24 +461,6 @@ def error_coverage(preset: str) -> float:
     return ERROR_COVERAGE.get(preset, DEFAULT_ERROR_COVERAGE)
 
 
-# What makes a measurement count as reliable, by preset: the widest 95 % intervals (its error
-# model's ``reliable_half_width``; elsewhere fetch_env.probes.RELIABLE_HALF_WIDTH, 2.5 % for
-# each) and the largest diagnostics (``reliable_diagnostics``).  The precise probes repeat
-# the clamp seven times and the slide three, and the repeats' own disagreement says which
-# foods they miss better than any width: a food whose clamps scatter (a soft, large cube
-# that shifts in the blades as it relaxes) or whose hold a linear drift pulls far is
-# missed, one whose clamps agree is not, whatever foods like it do.  So the rule is: the
-# clamps' spread of log g1 at most 0.03 and of log tau1 at most 0.06, a drift that moves
-# log tau1 by at most 0.1, half the log-range of the slides' mu at most 0.01, mu's interval within
-# +-7 % (needed with sensor noise, whose misses no spread shows) and g1's and tau1's within
-# +-10 % (a backstop; it changes no tuning food's flag).  Chosen on the 512 tuning foods
-# (256 with 1 % noise), 8-fold cross-validated, fold seeds 0-2, as the rule that calls no
-# food with a g1, tau1 or mu error over 5 % reliable, with or without noise, and the fewest
-# foods with every error under 2 % unreliable: without noise 0 of 21 over 5 % reliable and
-# 55-57 of 451 under 2 % unreliable (12 %; the widths alone, 5 % for g1 and mu and 2.5 % for
-# tau1, flagged 100-106, 22-23 %); with 1 % noise 0 of 21 and 77-79 of 170-173 (45 %;
-# the widths alone 1 of 21 reliable and 105-110).  The spreads alone, without mu's limits,
-# flag 17-18 of the 451 and miss no food without noise, and 12 of the 21 with noise.
 class Reliability(TypedDict, total=False):
     """A preset's rule for ``reliable`` (:func:`estimators.calibration.fit_error_model`'s
     arguments of these names)."""
@@ -487,6 +469,24 @@ class Reliability(TypedDict, total=False):
     reliable_diagnostics: dict[str, float]
 
 
+# What makes a measurement count as reliable, by preset: the widest 95 % intervals (its error
+# model's ``reliable_half_width``; elsewhere fetch_env.probes.RELIABLE_HALF_WIDTH, 2.5 % for
+# each) and the largest diagnostics (``reliable_diagnostics``).  The precise probes repeat
+# the clamp seven times and the slide three, and the repeats' own disagreement says which
+# foods they miss better than any width: a food whose clamps scatter (a soft, large cube
+# that shifts in the blades as it relaxes) or whose hold a linear drift pulls far is
+# missed, one whose clamps agree is not, whatever foods like it do.  So the rule is: the
+# clamps' spread of log g1 at most 0.03 and of log tau1 at most 0.06, a drift that moves
+# log tau1 by at most 0.1, half the log-range of the slides' mu at most 0.01, mu's interval
+# within +-7 % (needed with sensor noise, whose misses no spread shows) and g1's and tau1's
+# within +-10 % (a backstop; it changes no tuning food's flag).  Chosen on the 512 tuning foods
+# (256 with 1 % noise), 8-fold cross-validated, fold seeds 0-2, as the rule that calls no
+# food with a g1, tau1 or mu error over 5 % reliable, with or without noise, and the fewest
+# foods with every error under 2 % unreliable: without noise 0 of 21 over 5 % reliable and
+# 55-57 of 451 under 2 % unreliable (12 %; the widths alone, 5 % for g1 and mu and 2.5 % for
+# tau1, flagged 100-106, 22-23 %); with 1 % noise 0 of 21 and 77-79 of 170-173 (45 %;
+# the widths alone 1 of 21 reliable and 105-110).  The spreads alone, without mu's limits,
+# flag 17-18 of the 451 and miss no food without noise, and 12 of the 21 with noise.
 RELIABILITY: dict[str, Reliability] = {
     "precise": {"reliable_half_width": {"g1": 0.1, "tau1": 0.1, "mu": 0.07},
                 "reliable_diagnostics": {"repeat_sd_log_g1": 0.03, "repeat_sd_log_tau1": 0.06,
@@ -613,7 +613,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         check_ray_options("validate_estimators.py", args)
     except UsageError as exc:
-        p.error(str(exc).removeprefix("validate_estimators.py: "))
+        print(exc, file=sys.stderr)
+        return 2
     calibrated = not args.no_calibration and args.preset in PROBE_CALIBRATIONS
     if args.set == "block" and calibrated:
         p.error("--set block holds the foods a Block calibration is fitted on: run it with "
@@ -740,8 +741,7 @@ def run_streamed_on_ray(fn: Callable[..., dict[str, Any]], tasks: list[tuple[Any
             run_on_ray(tasks, lambda _i, rec: keep(rec), address, cpus, batch or RAY_BATCH,
                        run=functools.partial(_apply, fn))
             stop.armed = False
-        except KeyboardInterrupt:
-            stop.armed = False
+        except KeyboardInterrupt:  # (StopSignals raises only the first stop)
             return f"interrupted ({signal.Signals(stop.signum or signal.SIGINT).name})"
         except TaskFailed as exc:
             return f"food {exc.task[0].index} failed on Ray: {exc.error}"

@@ -1121,11 +1121,7 @@ def _slip_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | None, no
         _add_cpu(out, "cpu_fits", cpu_start)
     if not fits:
         raise EstimationError(failures[0])
-    fit = _median_of_slides(fits)
-    if len(fits) < config.slip_repeats:
-        # a spread of the slides that survived would say they agree when they could not be
-        # compared: left out, so an error model that reads it gives no interval
-        del fit.diagnostics["mu_trials"]
+    fit = _median_of_slides(fits, config.slip_repeats)
     out.details.setdefault("diagnostics", {}).update(fit.diagnostics)
     out.estimates["mu"] = fit.mu
     out.intervals["mu"] = fit.interval
@@ -1136,18 +1132,21 @@ def _slip_probe(piece: Piece, config: ProbeConfig, geometry: Geometry | None, no
     out.friction_valid = True
 
 
-def _median_of_slides(fits: list[_SlideFit]) -> _SlideFit:
+def _median_of_slides(fits: list[_SlideFit], asked: int) -> _SlideFit:
     """One mu from several slides: their median (a slide's own where there is one), with
     the slide nearest it giving the warnings; the log-sd of its interval is the median
     slide's, and the slides' spread (their log-sd) added in quadrature.  The diagnostics are
     the slides' means, with ``mu_trials``, half the log-range of the slides' mu (0 for one
-    slide; :func:`_slip_probe` drops it where a slide asked for gave no mu)."""
+    slide), only where all ``asked`` slides gave a mu: the spread of those that did would say
+    they agree when the others could not be compared (an error model that reads it then
+    gives no interval)."""
     mus = np.array([f.mu for f in fits])
     mu = float(np.median(mus))
     nearest = fits[int(np.argmin(np.abs(np.log(mus / mu))))]
     diagnostics = {k: float(np.mean([f.diagnostics[k] for f in fits]))
                    for k in nearest.diagnostics if all(k in f.diagnostics for f in fits)}
-    diagnostics["mu_trials"] = 0.5 * float(np.log(mus.max() / mus.min()))
+    if len(fits) == asked:
+        diagnostics["mu_trials"] = 0.5 * float(np.log(mus.max() / mus.min()))
     if len(fits) == 1:
         return _SlideFit(mu, nearest.warnings, nearest.interval, diagnostics)
     lo, hi = nearest.interval

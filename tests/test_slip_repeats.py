@@ -59,7 +59,7 @@ def _slide(mu: float, half_width: float = 0.02, gap: float = 0.01) -> _SlideFit:
 
 def test_the_median_slide_sets_mu_and_the_spread_widens_its_interval() -> None:
     fits = [_slide(0.40, gap=0.01), _slide(0.44, gap=0.03), _slide(0.39, gap=0.05)]
-    out = _median_of_slides(fits)
+    out = _median_of_slides(fits, 3)
     assert out.mu == 0.40 and out.warnings == ["slide 0.4"]
     assert_allclose(out.diagnostics["mu_trials"], 0.5 * math.log(0.44 / 0.39), rtol=1e-12)
     assert_allclose(out.diagnostics["mu_gap"], 0.03, rtol=1e-12)
@@ -71,7 +71,7 @@ def test_the_median_slide_sets_mu_and_the_spread_widens_its_interval() -> None:
 
 def test_one_slide_is_its_own_estimate_with_no_spread() -> None:
     fit = _slide(0.3)
-    out = _median_of_slides([fit])
+    out = _median_of_slides([fit], 1)
     assert (out.mu, out.interval, out.warnings) == (fit.mu, fit.interval, fit.warnings)
     assert out.diagnostics["mu_trials"] == 0.0
 
