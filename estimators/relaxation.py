@@ -27,7 +27,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import OptimizeResult, curve_fit, least_squares
+from scipy.optimize import OptimizeResult, curve_fit, least_squares, minimize_scalar
 from scipy.stats import t as student_t
 
 from estimators.errors import EstimationError, check_traces, instance, optional_real, real
@@ -381,6 +381,9 @@ def _trf(tol: float) -> dict[str, Any]:
             "max_nfev": 200}
 
 
+# The tolerance of the decay fits (x, cost and gradient).
+_DECAY_TOL = 1e-14
+
 # The least decay over the hold, rate * duration, at which _fit_decay keeps the unbounded
 # Levenberg-Marquardt fit (a hold counts as relaxing from 0.02, HoldFit.relaxes).
 LM_MIN_DECAY = 1e-3
@@ -390,32 +393,103 @@ def _fit_decay(model: Any, jac: Any, s: NDArray[np.float64], y: NDArray[np.float
                p0: tuple[float, ...]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """``curve_fit`` of a decay ``model`` whose third parameter, the rate, must be >= 0.
 
-    MINPACK's Levenberg-Marquardt (unbounded) runs first and is kept where its rate resolves
-    a decay over the hold (``rate * duration > LM_MIN_DECAY``): an interior minimum of the
-    unbounded problem is the bounded one's too, and on the probes' holds it is about 5x
-    faster than the bounded trust-region solver (its per-call overhead dominates these 3-4
-    parameter fits) and agrees with it to ~1e-8 in the rate.  The bounded ``trf`` solves the
-    rest: a rate that LM drives negative, an LM failure, and a nearly straight hold, where
-    LM may stop in the degenerate valley of a vanishing rate and a huge amplitude before the
-    minimum.
+    MINPACK's Levenberg-Marquardt (unbounded, :func:`_lm_decay`) runs first and is kept where
+    it resolves a decay.  The bounded ``trf`` solves the rest: a rate that LM drives
+    negative, an LM failure, and a nearly straight hold, where LM may stop in the degenerate
+    valley of a vanishing rate and a huge amplitude before the minimum.
 
     Raises:
         RuntimeError, ValueError: as ``curve_fit``, where the bounded fit fails too.
     """
-    tol = 1e-14
-    try:
-        popt, pcov = curve_fit(model, s, y, p0=p0, jac=jac, method="lm", xtol=tol, ftol=tol,
-                               gtol=0.0, maxfev=200)
-        if (popt[2] * s[-1] > LM_MIN_DECAY and np.all(np.isfinite(popt))
-                and np.all(np.isfinite(pcov))):
-            return popt, pcov
-    except (RuntimeError, ValueError):
-        pass
+    fit = _lm_decay(model, jac, s, y, p0)
+    if fit is not None:
+        return fit
     n = len(p0)
     lower = np.full(n, -np.inf)
     lower[2] = 0.0
     return curve_fit(model, s, y, p0=p0, jac=jac, bounds=(lower, np.full(n, np.inf)),
-                     **_trf(tol))
+                     **_trf(_DECAY_TOL))
+
+
+
+def _lm_decay(model: Any, jac: Any, s: NDArray[np.float64], y: NDArray[np.float64],
+              p0: tuple[float, ...]
+              ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """The unbounded Levenberg-Marquardt ``curve_fit`` of a decay ``model`` (third
+    parameter the rate), or None where it fails or its rate does not resolve a decay over
+    the hold (``rate * duration <= LM_MIN_DECAY``).
+
+    Why first: an interior minimum of the unbounded problem is the bounded one's too, and on
+    the probes' holds it is about 5x faster than the bounded trust-region solver (its
+    per-call overhead dominates these 3-4 parameter fits) and agrees with it to ~1e-8 in the
+    rate.
+    """
+    try:
+        popt, pcov = curve_fit(model, s, y, p0=p0, jac=jac, method="lm", xtol=_DECAY_TOL,
+                               ftol=_DECAY_TOL, gtol=0.0, maxfev=200)
+    except (RuntimeError, ValueError):
+        return None
+    if (popt[2] * s[-1] > LM_MIN_DECAY and np.all(np.isfinite(popt))
+            and np.all(np.isfinite(pcov))):
+        return popt, pcov
+    return None
+
+
+# The rates, times the hold's duration, over which _fit_decay_line searches: from a decay
+# of 0.1 % over the hold (a line) to one over within 0.1 % of the hold (a step).
+_LINE_RATES = (1e-3, 1e3)
+_LINE_GRID = 61
+
+
+def _fit_decay_line(s: NDArray[np.float64], y: NDArray[np.float64]
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Least squares of eq. 6 plus a line, ``M_inf + A exp(-rate s) + c s`` with rate >= 0,
+    by variable projection: for a fixed rate the model is linear in ``(M_inf, A, c)``, so
+    the fit is a one-dimensional search of the residual over the rate (a log-spaced grid,
+    then ``scipy.optimize.minimize_scalar`` between the best point's neighbours).
+
+    Why: where the exponential and the line nearly coincide (a slow decay over the hold) the
+    four-parameter problem has a long, flat valley that Levenberg-Marquardt and the bounded
+    trust-region solver may both walk for their whole budget without converging (~80 ms a
+    fit); the search over the rate alone takes ~3 ms and finds the minimum, or says there is
+    none inside the rates (the best grid point at either end: the decay is not separable
+    from the line, or from a step).  Returns ``(M_inf, A, rate, c)`` and their covariance
+    (``s^2 (J^T J)^-1``, as ``curve_fit``).
+
+    Raises:
+        RuntimeError: no minimum inside the rates, or a singular Jacobian at the minimum.
+    """
+    duration = float(s[-1])
+    if not (duration > 0.0 and s.size > 4):
+        raise RuntimeError("a decay and a line need a hold of more than 4 samples")
+    rates = np.geomspace(_LINE_RATES[0] / duration, _LINE_RATES[1] / duration, _LINE_GRID)
+    rss = np.array([_line_projection(s, y, r)[0] for r in rates])
+    k = int(np.argmin(rss))
+    if k in (0, rates.size - 1):
+        raise RuntimeError("the decay is not separable from the line: the least residual is "
+                           f"at the edge of the rates searched, {rates[k]:.3g} 1/s")
+    res = minimize_scalar(lambda u: _line_projection(s, y, math.exp(u))[0],
+                          bounds=(math.log(rates[k - 1]), math.log(rates[k + 1])),
+                          method="bounded", options={"xatol": 1e-9})
+    rate = math.exp(float(res.x))
+    rss_min, (m_inf, a, c) = _line_projection(s, y, rate)
+    popt = np.array([m_inf, a, rate, c])
+    jac = _exp_drift_jac(s, *popt)
+    try:
+        pcov = np.linalg.inv(jac.T @ jac) * rss_min / (s.size - popt.size)
+    except np.linalg.LinAlgError as exc:
+        raise RuntimeError("singular Jacobian at the decay-and-line minimum") from exc
+    return popt, pcov
+
+
+def _line_projection(s: NDArray[np.float64], y: NDArray[np.float64], rate: float
+                     ) -> tuple[float, NDArray[np.float64]]:
+    """The residual sum of squares of the best ``M_inf + A exp(-rate s) + c s`` at ``rate``,
+    and that ``(M_inf, A, c)``."""
+    basis = np.column_stack((np.ones_like(s), np.exp(-rate * s), s))
+    beta, *_ = np.linalg.lstsq(basis, y, rcond=None)
+    r = y - basis @ beta
+    return float(r @ r), beta
 
 
 def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float, drift: bool = False,
@@ -503,13 +577,16 @@ def _hold_fit(s: NDArray[np.float64], y: NDArray[np.float64], duration: float,
 def _add_drift(s: NDArray[np.float64], y: NDArray[np.float64], popt: NDArray[np.float64],
                pcov: NDArray[np.float64]
                ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
-    """Refit eq. 6 plus a linear drift from the plain fit ``popt``; the plain fit (and no
-    drift) where the refit fails.  Returns ``(M_inf, A, lam)``, their marginal covariance and
-    the drift's slope."""
-    try:
-        p4, c4 = _fit_decay(_exp_drift_model, _exp_drift_jac, s, y, (*popt, 0.0))
-    except (RuntimeError, ValueError):
-        return popt, pcov, 0.0
+    """Refit eq. 6 plus a linear drift from the plain fit ``popt`` (Levenberg-Marquardt,
+    else :func:`_fit_decay_line`); the plain fit (and no drift) where both fail.  Returns
+    ``(M_inf, A, lam)``, their marginal covariance and the drift's slope."""
+    fit = _lm_decay(_exp_drift_model, _exp_drift_jac, s, y, (*popt, 0.0))
+    if fit is None:
+        try:
+            fit = _fit_decay_line(s, y)
+        except RuntimeError:
+            return popt, pcov, 0.0
+    p4, c4 = fit
     if not (np.all(np.isfinite(p4)) and np.all(np.isfinite(c4))):
         return popt, pcov, 0.0
     return p4[:3], c4[:3, :3], float(p4[3])
