@@ -375,7 +375,7 @@ def _exp_drift_jac(s: NDArray[np.float64], m_inf: float, a: float, lam: float, c
 
 
 def _trf(tol: float) -> dict[str, Any]:
-    """scipy's bounded trust-region solver as every fit here uses it: Jacobian-scaled steps,
+    """scipy's bounded trust-region solver as the full fit uses it: Jacobian-scaled steps,
     ``tol`` on x, the cost and the gradient, at most 200 evaluations."""
     return {"method": "trf", "x_scale": "jac", "xtol": tol, "ftol": tol, "gtol": tol,
             "max_nfev": 200}
@@ -387,29 +387,22 @@ _DECAY_TOL = 1e-14
 # The least decay over the hold, rate * duration, at which _fit_decay keeps the unbounded
 # Levenberg-Marquardt fit (a hold counts as relaxing from 0.02, HoldFit.relaxes).
 LM_MIN_DECAY = 1e-3
+LM_MAX_EVALUATIONS = 100
 
 
-def _fit_decay(model: Any, jac: Any, s: NDArray[np.float64], y: NDArray[np.float64],
-               p0: tuple[float, ...]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``curve_fit`` of a decay ``model`` whose third parameter, the rate, must be >= 0.
-
-    MINPACK's Levenberg-Marquardt (unbounded, :func:`_lm_decay`) runs first and is kept where
-    it resolves a decay.  The bounded ``trf`` solves the rest: a rate that LM drives
-    negative, an LM failure, and a nearly straight hold, where LM may stop in the degenerate
-    valley of a vanishing rate and a huge amplitude before the minimum.
+def _fit_decay(s: NDArray[np.float64], y: NDArray[np.float64], p0: tuple[float, float, float]
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Least squares of eq. 6, ``M_inf + A exp(-rate s)`` with rate >= 0, from ``p0``:
+    MINPACK's Levenberg-Marquardt (:func:`_lm_decay`) where it resolves a decay, else
+    the search over the rate (:func:`_fit_decay_projected`), which finds the bounded
+    minimum where LM drives the rate negative, fails, or stops in the degenerate valley of
+    a vanishing rate and a huge amplitude (a nearly straight hold).
 
     Raises:
-        RuntimeError, ValueError: as ``curve_fit``, where the bounded fit fails too.
+        RuntimeError: neither finds a decay.
     """
-    fit = _lm_decay(model, jac, s, y, p0)
-    if fit is not None:
-        return fit
-    n = len(p0)
-    lower = np.full(n, -np.inf)
-    lower[2] = 0.0
-    return curve_fit(model, s, y, p0=p0, jac=jac, bounds=(lower, np.full(n, np.inf)),
-                     **_trf(_DECAY_TOL))
-
+    fit = _lm_decay(_exp_model, _exp_jac, s, y, p0)
+    return fit if fit is not None else _fit_decay_projected(s, y, line=False)
 
 
 def _lm_decay(model: Any, jac: Any, s: NDArray[np.float64], y: NDArray[np.float64],
@@ -420,13 +413,14 @@ def _lm_decay(model: Any, jac: Any, s: NDArray[np.float64], y: NDArray[np.float6
     the hold (``rate * duration <= LM_MIN_DECAY``).
 
     Why first: an interior minimum of the unbounded problem is the bounded one's too, and on
-    the probes' holds it is about 5x faster than the bounded trust-region solver (its
-    per-call overhead dominates these 3-4 parameter fits) and agrees with it to ~1e-8 in the
-    rate.
+    the probes' holds it takes 1-2 ms (5-65 evaluations) where the search over the rate
+    (:func:`_fit_decay_projected`) takes ~3 ms, agreeing with it to ~1e-8 in the rate.  At
+    most ``LM_MAX_EVALUATIONS``: a fit that needs more is in the valley of a vanishing rate,
+    which the search crosses faster.
     """
     try:
         popt, pcov = curve_fit(model, s, y, p0=p0, jac=jac, method="lm", xtol=_DECAY_TOL,
-                               ftol=_DECAY_TOL, gtol=0.0, maxfev=200)
+                               ftol=_DECAY_TOL, gtol=0.0, maxfev=LM_MAX_EVALUATIONS)
     except (RuntimeError, ValueError):
         return None
     if (popt[2] * s[-1] > LM_MIN_DECAY and np.all(np.isfinite(popt))
@@ -435,58 +429,62 @@ def _lm_decay(model: Any, jac: Any, s: NDArray[np.float64], y: NDArray[np.float6
     return None
 
 
-# The rates, times the hold's duration, over which _fit_decay_line searches: from a decay
-# of 0.1 % over the hold (a line) to one over within 0.1 % of the hold (a step).
-_LINE_RATES = (1e-3, 1e3)
-_LINE_GRID = 61
+# The rates, times the hold's duration, over which _fit_decay_projected searches: from a
+# decay of 0.1 % over the hold (nearly a line) to one over within 0.1 % of it (a step).
+_PROJECTED_RATES = (1e-3, 1e3)
+_PROJECTED_GRID = 61
 
 
-def _fit_decay_line(s: NDArray[np.float64], y: NDArray[np.float64]
-                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Least squares of eq. 6 plus a line, ``M_inf + A exp(-rate s) + c s`` with rate >= 0,
-    by variable projection: for a fixed rate the model is linear in ``(M_inf, A, c)``, so
-    the fit is a one-dimensional search of the residual over the rate (a log-spaced grid,
-    then ``scipy.optimize.minimize_scalar`` between the best point's neighbours).
+def _fit_decay_projected(s: NDArray[np.float64], y: NDArray[np.float64], line: bool
+                         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Least squares of eq. 6, ``M_inf + A exp(-rate s)`` with rate >= 0, plus a line
+    ``c s`` where ``line``, by variable projection: for a fixed rate the model is linear in
+    the others, so the fit is a one-dimensional search of the residual over the rate (a
+    log-spaced grid, then ``scipy.optimize.minimize_scalar`` between the best point's
+    neighbours).
 
-    Why: where the exponential and the line nearly coincide (a slow decay over the hold) the
-    four-parameter problem has a long, flat valley that Levenberg-Marquardt and the bounded
-    trust-region solver may both walk for their whole budget without converging (~80 ms a
-    fit); the search over the rate alone takes ~3 ms and finds the minimum, or says there is
-    none inside the rates (the best grid point at either end: the decay is not separable
-    from the line, or from a step).  Returns ``(M_inf, A, rate, c)`` and their covariance
-    (``s^2 (J^T J)^-1``, as ``curve_fit``).
+    Why: where a slow decay nearly coincides with a line, or with a constant, the problem
+    has a long, flat valley (a vanishing rate, a huge amplitude) that Levenberg-Marquardt
+    and a bounded trust-region solver may walk for their whole budget without converging
+    (~30-80 ms a fit); the search over the rate alone takes ~3 ms and finds the minimum, or
+    says there is none inside the rates (the best grid point at either end: the decay is
+    not separable from the line or constant, or from a step).  Returns ``(M_inf, A, rate)``
+    (and ``c``) and their covariance (``s^2 (J^T J)^-1``, as ``curve_fit``).
 
     Raises:
         RuntimeError: no minimum inside the rates, or a singular Jacobian at the minimum.
     """
+    n_params = 4 if line else 3
     duration = float(s[-1])
-    if not (duration > 0.0 and s.size > 4):
-        raise RuntimeError("a decay and a line need a hold of more than 4 samples")
-    rates = np.geomspace(_LINE_RATES[0] / duration, _LINE_RATES[1] / duration, _LINE_GRID)
-    rss = np.array([_line_projection(s, y, r)[0] for r in rates])
+    if not (duration > 0.0 and s.size > n_params):
+        raise RuntimeError(f"a decay needs a hold of more than {n_params} samples")
+    rates = np.geomspace(_PROJECTED_RATES[0] / duration, _PROJECTED_RATES[1] / duration,
+                         _PROJECTED_GRID)
+    rss = np.array([_projection(s, y, r, line)[0] for r in rates])
     k = int(np.argmin(rss))
     if k in (0, rates.size - 1):
-        raise RuntimeError("the decay is not separable from the line: the least residual is "
-                           f"at the edge of the rates searched, {rates[k]:.3g} 1/s")
-    res = minimize_scalar(lambda u: _line_projection(s, y, math.exp(u))[0],
+        raise RuntimeError("the decay is not separable: the least residual is at the edge "
+                           f"of the rates searched, {rates[k]:.3g} 1/s")
+    res = minimize_scalar(lambda u: _projection(s, y, math.exp(u), line)[0],
                           bounds=(math.log(rates[k - 1]), math.log(rates[k + 1])),
                           method="bounded", options={"xatol": 1e-9})
     rate = math.exp(float(res.x))
-    rss_min, (m_inf, a, c) = _line_projection(s, y, rate)
-    popt = np.array([m_inf, a, rate, c])
-    jac = _exp_drift_jac(s, *popt)
+    rss_min, beta = _projection(s, y, rate, line)
+    popt = np.array([beta[0], beta[1], rate, *beta[2:]])
+    jac = (_exp_drift_jac if line else _exp_jac)(s, *popt)
     try:
-        pcov = np.linalg.inv(jac.T @ jac) * rss_min / (s.size - popt.size)
+        pcov = np.linalg.inv(jac.T @ jac) * rss_min / (s.size - n_params)
     except np.linalg.LinAlgError as exc:
-        raise RuntimeError("singular Jacobian at the decay-and-line minimum") from exc
+        raise RuntimeError("singular Jacobian at the decay's minimum") from exc
     return popt, pcov
 
 
-def _line_projection(s: NDArray[np.float64], y: NDArray[np.float64], rate: float
-                     ) -> tuple[float, NDArray[np.float64]]:
-    """The residual sum of squares of the best ``M_inf + A exp(-rate s) + c s`` at ``rate``,
-    and that ``(M_inf, A, c)``."""
-    basis = np.column_stack((np.ones_like(s), np.exp(-rate * s), s))
+def _projection(s: NDArray[np.float64], y: NDArray[np.float64], rate: float, line: bool
+                ) -> tuple[float, NDArray[np.float64]]:
+    """The residual sum of squares of the best ``M_inf + A exp(-rate s)`` (``+ c s`` where
+    ``line``) at ``rate``, and that ``(M_inf, A)`` (``, c``)."""
+    columns = [np.ones_like(s), np.exp(-rate * s)] + ([s] if line else [])
+    basis = np.column_stack(columns)
     beta, *_ = np.linalg.lstsq(basis, y, rcond=None)
     r = y - basis @ beta
     return float(r @ r), beta
@@ -544,7 +542,7 @@ def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float, drift: bool = Fa
     a0 = float(y[0] - m_inf0) * _safe_exp(lam0 * s[0])
     p0 = (m_inf0, a0, lam0)
     try:
-        popt, pcov = _fit_decay(_exp_model, _exp_jac, s, y, p0)
+        popt, pcov = _fit_decay(s, y, p0)
         converged = bool(np.all(np.isfinite(popt)) and np.all(np.isfinite(pcov)))
     except (RuntimeError, ValueError):
         popt, pcov, converged = np.asarray(p0), np.full((3, 3), np.inf), False
@@ -578,12 +576,12 @@ def _add_drift(s: NDArray[np.float64], y: NDArray[np.float64], popt: NDArray[np.
                pcov: NDArray[np.float64]
                ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
     """Refit eq. 6 plus a linear drift from the plain fit ``popt`` (Levenberg-Marquardt,
-    else :func:`_fit_decay_line`); the plain fit (and no drift) where both fail.  Returns
+    else :func:`_fit_decay_projected`); the plain fit (and no drift) where both fail.  Returns
     ``(M_inf, A, lam)``, their marginal covariance and the drift's slope."""
     fit = _lm_decay(_exp_drift_model, _exp_drift_jac, s, y, (*popt, 0.0))
     if fit is None:
         try:
-            fit = _fit_decay_line(s, y)
+            fit = _fit_decay_projected(s, y, line=True)
         except RuntimeError:
             return popt, pcov, 0.0
     p4, c4 = fit
