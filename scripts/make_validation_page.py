@@ -9,6 +9,7 @@ nothing here is typed by hand but the method's description.
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -39,6 +40,8 @@ DATA = ROOT / "docs" / "data" / "validation"
 RUNS = (
     ("reporting_precise_noise0", "Reporting foods, calibrated, no added noise"),
     ("reporting_precise_noise0.01", "Reporting foods, calibrated, 1 % sensor noise"),
+    ("reporting_precise_noise0_one_core", "Reporting foods, calibrated, no added noise, one "
+     "worker (the speed on one core: no second worker shares the machine)"),
     ("reporting_precise_uncal_noise0", "Reporting foods, without the calibration"),
     ("reporting_repeated_noise0", "Reporting foods, seven clamps at the 5 ms step "
      "(`repeated`), calibrated"),
@@ -601,6 +604,13 @@ def block_calibration_section() -> str:
     return "".join(out)
 
 
+def _workers(meta: dict[str, Any]) -> str:
+    """How many worker processes a run's command asked for, in words (1 by default)."""
+    found = re.search(r"--workers (\d+)", meta.get("command", ""))
+    n = int(found.group(1)) if found else 1
+    return "1 worker" if n == 1 else f"{n} workers"
+
+
 def main() -> int:
     parts = [HEAD]
     for stem, title in RUNS:
@@ -613,7 +623,7 @@ def main() -> int:
         parts.append(table(data["summary"], f"{meta['set']} set, {meta['n']} foods, seed "
                                             f"{meta['seed']}, noise {meta['noise']:g}"))
         parts.append(f"\nMachine: {meta['machine']}, {meta['cpus']} cores, Python "
-                     f"{meta['python']}; {meta['wall_s']:.0f} s with 2 workers.  "
+                     f"{meta['python']}; {meta['wall_s']:.0f} s with {_workers(meta)}.  "
                      f"![errors]({'data/validation/' + stem}_errors.png)\n\n")
     held = {preset: cross_validated_runs(stems, PROBE_CALIBRATIONS[preset].form)
             for preset, stems in CROSS_VALIDATED.items() if preset in PROBE_CALIBRATIONS}
