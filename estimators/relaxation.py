@@ -399,7 +399,8 @@ def _fit_decay(s: NDArray[np.float64], y: NDArray[np.float64], p0: tuple[float, 
     a vanishing rate and a huge amplitude (a nearly straight hold).
 
     Raises:
-        RuntimeError: neither finds a decay.
+        RuntimeError: neither finds a decay; ValueError (numpy's ``LinAlgError``): the
+            search's linear least squares does not converge.
     """
     fit = _lm_decay(_exp_model, _exp_jac, s, y, p0)
     return fit if fit is not None else _fit_decay_projected(s, y, line=False)
@@ -452,7 +453,8 @@ def _fit_decay_projected(s: NDArray[np.float64], y: NDArray[np.float64], line: b
     (and ``c``) and their covariance (``s^2 (J^T J)^-1``, as ``curve_fit``).
 
     Raises:
-        RuntimeError: no minimum inside the rates, or a singular Jacobian at the minimum.
+        RuntimeError: no minimum inside the rates, or a singular Jacobian at the minimum;
+        ValueError (numpy's ``LinAlgError``): a linear least squares does not converge.
     """
     n_params = 4 if line else 3
     duration = float(s[-1])
@@ -582,7 +584,7 @@ def _add_drift(s: NDArray[np.float64], y: NDArray[np.float64], popt: NDArray[np.
     if fit is None:
         try:
             fit = _fit_decay_projected(s, y, line=True)
-        except RuntimeError:
+        except (RuntimeError, ValueError):  # ValueError: numpy's LinAlgError
             return popt, pcov, 0.0
     p4, c4 = fit
     if not (np.all(np.isfinite(p4)) and np.all(np.isfinite(c4))):
