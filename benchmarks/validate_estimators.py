@@ -116,6 +116,11 @@ def foods_of(name: str, n: int) -> list[Food]:
     return corner_foods()[:n]
 
 
+def food_seed(food: Food) -> int:
+    """The seed of a food's sensor noise: its own, whichever worker measures it, in any set."""
+    return 7919 * food.index + 1
+
+
 def measure(food: Food, preset: str, noise: float, seed: int, calibrate: bool = True,
             config: ProbeConfig | None = None, geometry: Geometry | None = None
             ) -> dict[str, Any]:
@@ -681,7 +686,7 @@ def _run_foods(foods: list[Food], args: argparse.Namespace, calibrated: bool, js
               + (rec["crash"] if "crash" in rec else " ".join(
                   f"{k} {100 * e[k]:+.2f}%" for k in ("g1", "tau1", "mu", "K1"))), flush=True)
 
-    tasks = [(f, args.preset, args.noise, 7919 * f.index + 1, calibrated, config, geometry)
+    tasks = [(f, args.preset, args.noise, food_seed(f), calibrated, config, geometry)
              for f in foods]
     if getattr(args, "ray", None) is not None:
         return run_streamed_on_ray(measure, tasks, args.ray, args.workers, args.ray_batch,

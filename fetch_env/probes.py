@@ -94,6 +94,7 @@ from fetch_env.controller import (
     check_relaxation_contact_ratio,
 )
 from fetch_env.errors import (
+    InvalidParameterError,
     SimulationDivergedError,
     require,
     require_finite,
@@ -1250,7 +1251,8 @@ _MAX_LOG_HALF_WIDTH = 700.0  # math.exp overflows a float just above 709
 
 def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometry | None = None,
                keep_traces: bool = False, noise: float = 0.0, seed: int = 0,
-               calibration: Calibration | None = None, workers: int = 1) -> ProbeOutcome:
+               calibration: Calibration | None = None, workers: int = 1,
+               runs: ProbeRuns | None = None) -> ProbeOutcome:
     """Run both probes on the centre piece and estimate its parameters, with 95 % intervals.
 
     ``noise`` adds white sensor noise (sd as a share of each trace's peak) from a generator
@@ -1265,8 +1267,13 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     estimates as ``workers=1``, sooner on a machine with cores to spare; the CPU times in
     ``details`` are then this process's only.
 
+    ``runs``: the probes' simulations of this piece already run (:func:`simulate_probes`,
+    with the same ``config`` and ``geometry``); only the fits run then, and the outcome is
+    the one a run without them gives (``workers`` is not used).
+
     Raises:
         fetch_env.parallel.WorkerLostError: a worker process died mid-run.
+        InvalidParameterError: ``runs`` simulated for another piece, config or geometry.
     """
     require_finite("noise", noise)
     require(0.0 <= noise <= 0.5, "noise", noise, "in [0, 0.5]")
@@ -1276,17 +1283,24 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     require(workers >= 1, "workers", workers, ">= 1")
     require_type("calibration", calibration, Calibration | None, "a Calibration or None")
     _check_probe_args(None, config, geometry)
+    require_type("runs", runs, ProbeRuns | None, "a ProbeRuns (simulate_probes) or None")
     wall, cpu = time.perf_counter(), time.process_time()
     k = probe_piece_index(pieces)
     piece = dataclasses.replace(pieces[k], x=0.0, y=0.0)
+    if runs is not None:
+        runs.check_for(piece, config, geometry)
     rng = np.random.default_rng(seed)
     nan = (math.nan, math.nan)
     out = ProbeOutcome(estimates=dict.fromkeys(PARAM_NAMES, math.nan), visco_valid=False,
                        friction_valid=False, wall_time=0.0, piece_index=k,
                        intervals=dict.fromkeys(PARAM_NAMES, nan))
     drift = reads_drift(calibration)
-    clamps, slides = (None, None) if workers == 1 else _runs_ahead(piece, config, geometry,
-                                                                    workers)
+    if runs is not None:
+        clamps, slides = list(runs.clamps), list(runs.slides)
+    elif workers > 1:
+        clamps, slides = _runs_ahead(piece, config, geometry, workers)
+    else:
+        clamps, slides = None, None
     out.details["workers"] = workers
     relaxation = functools.partial(_relaxation_probe, drift_diagnostics=drift, ahead=clamps)
     slip = functools.partial(_slip_probe, ahead=slides)
@@ -1312,6 +1326,51 @@ def reads_drift(calibration: Calibration | None) -> bool:
     if calibration.error_model is not None:
         read |= set(calibration.error_model.reliable_diagnostics)
     return not read.isdisjoint(DRIFT_DIAGNOSTICS)
+
+
+@dataclass(frozen=True)
+class ProbeRuns:
+    """The probes' simulations of one piece, before any fit (:func:`simulate_probes`): each
+    relaxation clamp and each slide, in order, as its ``SimResult`` or the error it raised.
+
+    :func:`run_probes` given them fits them instead of simulating again, with the outcome
+    a run without them gives: one simulation fitted with several noise seeds or
+    calibrations, or the fits' cost timed alone (``benchmarks/bench_fits.py``).
+    """
+
+    piece: Piece  # the probed piece, moved to the origin as the probes place it
+    config: ProbeConfig
+    geometry: Geometry | None
+    clamps: tuple[Any, ...]
+    slides: tuple[Any, ...]
+
+    def check_for(self, piece: Piece, config: ProbeConfig, geometry: Geometry | None) -> None:
+        """Raise :class:`InvalidParameterError` unless these are the simulations of
+        ``piece`` (at the origin) with ``config`` and ``geometry``."""
+        for name, mine, theirs in (("piece", self.piece, piece), ("config", self.config, config),
+                                   ("geometry", self.geometry, geometry)):
+            if mine != theirs:
+                raise InvalidParameterError(
+                    f"runs were simulated for another {name} than the one given "
+                    f"(simulate_probes with the same pieces, config and geometry)")
+
+
+def simulate_probes(pieces: tuple[Piece, ...], config: ProbeConfig,
+                    geometry: Geometry | None = None, workers: int = 1) -> ProbeRuns:
+    """Run the probes' simulations on the centre piece of ``pieces`` (every relaxation clamp
+    and slide; on ``workers`` processes at once where > 1) without fitting them; pass the
+    result to :func:`run_probes` as ``runs``.  A clamp or slide that fails keeps its error,
+    which :func:`run_probes` reports as it would have.
+
+    Raises:
+        fetch_env.parallel.WorkerLostError: a worker process died mid-run.
+    """
+    require_int("workers", workers)
+    require(workers >= 1, "workers", workers, ">= 1")
+    _check_probe_args(None, config, geometry)
+    piece = dataclasses.replace(pieces[probe_piece_index(pieces)], x=0.0, y=0.0)
+    clamps, slides = _runs_ahead(piece, config, geometry, workers)
+    return ProbeRuns(piece, config, geometry, tuple(clamps), tuple(slides))
 
 
 def _runs_ahead(piece: Piece, config: ProbeConfig, geometry: Geometry | None,

@@ -9,7 +9,8 @@ JSON.  The sources (each written by the benchmark named in its ``meta.command``)
 
 * ``physics``: ``docs/data/readme_physics.json`` (``benchmarks/physics_checks.py``);
 * ``headroom``: ``docs/data/headroom.json`` (``benchmarks/headroom.py``);
-* ``speed``: ``docs/data/readme_speed.json`` (``benchmarks/speed_summary.py``);
+* ``speed``: ``docs/data/readme_speed.json`` (``benchmarks/speed_summary.py``), and the row
+  of one food's estimate from ``docs/data/bench_fits.json`` (``benchmarks/bench_fits.py``);
 * ``soak``: ``docs/data/soak.json`` (``benchmarks/soak.py``).
 
 The estimator table (``<!-- estimator-table ... -->``) is ``scripts/make_validation_page.py``'s
@@ -21,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import statistics
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -31,6 +33,8 @@ README = ROOT / "README.md"
 DATA = ROOT / "docs" / "data"
 SOURCES = {"physics": DATA / "readme_physics.json", "headroom": DATA / "headroom.json",
            "speed": DATA / "readme_speed.json", "soak": DATA / "soak.json"}
+# One food's estimate timed in parts (benchmarks/bench_fits.py): a row of the speed table.
+ESTIMATE_COST = DATA / "bench_fits.json"
 HEADROOM_AGENTS = ("random", "study", "size-only", "model-based", "search", "ppo", "sac")
 TRAINED = ("ppo", "sac")
 
@@ -168,6 +172,8 @@ def speed_table(data: dict[str, Any]) -> str:
     rows.append("| probes' share | " + ", ".join(
         f"{n} {100 * envs[i]['probe_share']:.0f} %" for n, i in zip(names, shown, strict=True))
         + " |")
+    if ESTIMATE_COST.exists():
+        rows.append(estimate_cost_row(json.loads(ESTIMATE_COST.read_text())))
     meta = data["meta"]
     load = (f"{meta['load_average_at_start']:g} at the start, "
             f"{meta['load_average_at_end']:g} at the end")
@@ -176,6 +182,17 @@ def speed_table(data: dict[str, Any]) -> str:
              if settings and all("quasi_static" in envs[i] for i in shown) else "")
     return ("\n".join(rows) + f"\n\nOne core, {data['episodes']} episodes an id{quasi}; load "
             f"average {load}; " + _footer(meta).lstrip("\n"))
+
+
+def estimate_cost_row(data: dict[str, Any]) -> str:
+    """One food's estimate, its simulations (one timing each) and its fits (each food's
+    median of ``repeats``) on the first noise level, from ``benchmarks/bench_fits.py``."""
+    sims = data["simulations_cpu_s"]
+    fits = next(iter(data["fits"].values()))
+    return (f"| [one food's estimate](docs/data/bench_fits.json), {len(sims)} foods | "
+            f"simulations median {statistics.median(sims):.1f} s, max "
+            f"{max(sims):.1f} s; fits median {1e3 * fits['median']:.0f} ms, max "
+            f"{1e3 * fits['max']:.0f} ms |")
 
 
 def soak_table(data: dict[str, Any]) -> str:

@@ -159,7 +159,11 @@ before it happens, so only a wide interval can flag it).
 
 Each run: `python benchmarks/validate_estimators.py --set SET --n 64 --workers 2
 --preset precise|repeated|measure [--noise 0.01] --out docs/data/validation`; the records, a
-CSV and a figure of the errors against each parameter sit beside the JSON.
+CSV and a figure of the errors against each parameter sit beside the JSON.  A run times
+each food once, in the middle of simulating others, and on this shared machine about one
+timing in 50-100 comes out several times its food's usual cost; [`bench_fits.py`](
+benchmarks.md#one-foods-estimate-simulations-and-fits-apart-bench_fitspy) times the fits
+apart, five times a food, on the estimates committed here.
 
 """
 

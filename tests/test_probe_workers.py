@@ -29,7 +29,7 @@ from fetch_env.errors import (
 from fetch_env.layouts import single_block
 from fetch_env.materials import Material
 from fetch_env.parallel import WorkerLostError, outcome, pool_context, run_ahead
-from fetch_env.probes import PROBE_CALIBRATIONS, PROBE_PRESETS, run_probes
+from fetch_env.probes import PROBE_CALIBRATIONS, PROBE_PRESETS, run_probes, simulate_probes
 from tests.cli_helpers import assert_one_line_error, run_cli
 
 # a small stiff ellipsoid: seven clamps and three slides of the repeated probes in ~1 s
@@ -66,6 +66,36 @@ def test_both_start_methods_give_the_serial_estimates(start_method: str) -> None
     serial = run_probes(PIECES, config, noise=0.01, seed=4, calibration=cal)
     pooled = run_probes(PIECES, config, noise=0.01, seed=4, calibration=cal, workers=2)
     assert (pooled.estimates, pooled.intervals) == (serial.estimates, serial.intervals)
+
+
+@pytest.mark.parametrize(("workers", "noise"), [(1, 0.01), (2, 0.0)])
+def test_simulated_runs_fitted_later_give_the_same_outcome(workers: int, noise: float) -> None:
+    """``simulate_probes`` then ``run_probes(runs=)``: the outcome of one call, bit for bit,
+    and the same runs fitted again (another noise seed) cost no simulation."""
+    config, cal = PROBE_PRESETS["repeated"], PROBE_CALIBRATIONS["repeated"]
+    whole = run_probes(PIECES, config, noise=noise, seed=4, calibration=cal)
+    runs = simulate_probes(PIECES, config, workers=workers)
+    assert len(runs.clamps) == config.relaxation_repeats
+    assert len(runs.slides) == config.slip_repeats
+    fitted = run_probes(PIECES, config, noise=noise, seed=4, calibration=cal, runs=runs)
+    assert (fitted.estimates, fitted.intervals) == (whole.estimates, whole.intervals)
+    assert fitted.warnings == whole.warnings
+    assert fitted.details["diagnostics"] == whole.details["diagnostics"]
+    assert fitted.reliable == whole.reliable and fitted.visco_valid
+    # the fits alone: a small share of the probes' cost (~0.5 s of simulation here)
+    assert fitted.details["cpu_time"] < 0.5 * whole.details["cpu_time"]
+
+
+def test_runs_of_another_piece_or_config_are_refused() -> None:
+    config = PROBE_PRESETS["repeated"]
+    runs = simulate_probes(PIECES, config)
+    other = single_block("cube", 0.012, Material(young=8e5, g1=0.35, tau1=1.2, mu=0.4))
+    with pytest.raises(InvalidParameterError, match="another piece"):
+        run_probes(other, config, runs=runs)
+    with pytest.raises(InvalidParameterError, match="another config"):
+        run_probes(PIECES, PROBE_PRESETS["precise"], runs=runs)
+    with pytest.raises(InvalidParameterError, match="runs must be a ProbeRuns"):
+        run_probes(PIECES, config, runs="runs.pkl")  # type: ignore[arg-type]
 
 
 def _context_name(queue: multiprocessing.Queue, threads: int) -> None:  # type: ignore[type-arg]

@@ -21,6 +21,7 @@ from benchmarks.validate_estimators import (
     calibrate,
     coverage_interval,
     coverage_text,
+    food_seed,
     foods_of,
     measure,
     summarize,
@@ -40,7 +41,7 @@ def test_reporting_foods_measure_as_committed(preset: str, index: int) -> None:
     harness is deterministic), every estimate found, and the truth inside the g1 and mu
     intervals wherever the committed run had it there."""
     food = foods_of("reporting", 64)[index]
-    rec = measure(food, preset, 0.0, 7919 * index + 1)
+    rec = measure(food, preset, 0.0, food_seed(food))
     old = next(r for r in REPORTS[preset]["records"] if r["food"]["index"] == index)
     for k in PARAM_NAMES:
         assert_allclose(rec["estimate"][k], old["estimate"][k], rtol=1e-6, err_msg=k)
@@ -130,7 +131,7 @@ def test_default_probes_meet_the_reporting_sets_figures_on_its_first_foods() -> 
     within 3 % (the set's: 1.45, 1.38 and 1.66 %), and the g1 and tau1 intervals covering
     the truth on at least 7 of the 8 (committed: g1 at most 0.67 %, tau1 0.86 %, all 8
     covered; K1, K2, B medians 1.3, 1.1, 1.5 %)."""
-    recs = [measure(food, "precise", 0.0, 7919 * food.index + 1)
+    recs = [measure(food, "precise", 0.0, food_seed(food))
             for food in foods_of("reporting", 64)[:8]]
     names = ("g1", "tau1", "mu", "K1", "K2", "B")
     err = {k: np.array([abs(r["error"][k]) for r in recs]) for k in names}
