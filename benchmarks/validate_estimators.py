@@ -73,7 +73,7 @@ from fetch_env.food_space import (
     corner_foods,
     sample_foods,
 )
-from fetch_env.parallel import pool_context, stopping, worker_signals
+from fetch_env.parallel import pool_context, stop_exit_code, stopping, worker_signals
 from fetch_env.probes import (
     CALIBRATION_FILE,
     PARAM_NAMES,
@@ -656,14 +656,17 @@ def main(argv: list[str] | None = None) -> int:
 def _write_results(args: argparse.Namespace, name: str, records: list[dict[str, Any]],
                    meta: dict[str, Any], jsonl: Path, stopped: str) -> int:
     """Write the run's outputs (those of the finished foods where it ``stopped``, saying
-    why) and return the exit code: 0, 130 for a stop signal, 1 for a lost worker."""
+    why) and return the exit code: 0; 128 + the signal's number for a stop (130 for Ctrl-C,
+    143 for SIGTERM, 129 for SIGHUP); 1 for a lost worker or a cluster gone."""
     if stopped:
         meta["stopped"] = stopped
         if records:
             write_outputs(args.out, name, records, meta)
         print(f"validate_estimators: {stopped}; {len(records)} of {args.n} foods finished, kept "
               f"in {jsonl} (rerun with --resume to finish)", file=sys.stderr)
-        return 130 if stopped.startswith("interrupted") else 1
+        if stopped.startswith("interrupted"):  # "interrupted (SIGTERM)"
+            return stop_exit_code(stopped.removeprefix("interrupted (").removesuffix(")"))
+        return 1
     summary = write_outputs(args.out, name, records, meta)
     print(table(summary, name))
     return 0

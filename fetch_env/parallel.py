@@ -28,7 +28,7 @@ from fetch_env.clipping import rewarn
 from fetch_env.errors import require, require_int
 
 __all__ = ["Task", "WorkerLostError", "end_workers", "outcome", "pool_context",
-           "raise_interrupt", "run_ahead", "stopping", "worker_signals"]
+           "raise_interrupt", "run_ahead", "stop_exit_code", "stopping", "worker_signals"]
 
 # One simulation: a module-level function (picklable) and its arguments.
 Task = tuple[Callable[..., Any], tuple[Any, ...]]
@@ -127,15 +127,28 @@ def outcome(result: Any) -> Any:
 
 def worker_signals() -> None:
     """A pool worker's signal handlers (its ``initializer``): it stops quietly on SIGTERM and
-    SIGHUP and leaves Ctrl-C to the main process."""
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    SIGHUP, unless the main process ignored them when it started the worker (``nohup``), and
+    leaves Ctrl-C to the main process."""
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            signal.signal(sig, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def raise_interrupt(signum: int, _frame: Any) -> None:
     """A signal handler that stops the main process as Ctrl-C does, naming the signal."""
     raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
+def stop_exit_code(interrupt: BaseException | str | None) -> int:
+    """The exit code of a command that a stop ended: 128 + the number of the signal that
+    ``interrupt`` names (a ``KeyboardInterrupt`` from :func:`raise_interrupt`, or its name:
+    "SIGTERM" gives 143), as a shell reports a process that signal killed; 130 (Ctrl-C's)
+    where it names none."""
+    if isinstance(interrupt, BaseException):
+        interrupt = interrupt.args[0] if interrupt.args else None
+    known = isinstance(interrupt, str) and interrupt in signal.Signals.__members__
+    return 128 + (signal.Signals[interrupt] if known else signal.SIGINT).value
 
 
 @contextmanager
@@ -145,20 +158,23 @@ def stopping(pool: ProcessPoolExecutor) -> Iterator[None]:
     On entering, the pool's workers are started with the stop signals held back (one
     arriving while a worker is being forked would leave that worker running, unrecorded by
     the pool) and delivered once all are recorded.  Within the block SIGTERM and SIGHUP
-    raise ``KeyboardInterrupt`` (:func:`raise_interrupt`).  On leaving, Ctrl-C, SIGTERM and
-    SIGHUP are ignored while what has not started is cancelled and every worker is
-    terminated (killed if it has not ended within ``STOP_GRACE`` s) and joined, and the
-    pool's manager thread, which reaps workers too, is given as long to end (a worker
-    mid-task would otherwise run on after a stop; ``timeout`` and a process-group kill send
-    a stop more than once, and a second one raising here would print a traceback); then the
-    handlers found are put back.  Signal handlers can be set only in the main thread:
-    elsewhere the pool is stopped the same way with the handlers left alone.
+    raise ``KeyboardInterrupt`` (:func:`raise_interrupt`), but for one ignored on entering
+    (``nohup`` ignores SIGHUP), which stays ignored here and in the workers.  On leaving,
+    Ctrl-C, SIGTERM and SIGHUP are ignored while what has not started is cancelled and
+    every worker is terminated (killed if it has not ended within ``STOP_GRACE`` s) and
+    joined, and the pool's manager thread, which reaps workers too, is given as long to
+    end (a worker mid-task would otherwise run on after a stop; ``timeout`` and a
+    process-group kill send a stop more than once, and a second one raising here would
+    print a traceback); then the handlers found are put back.  Signal handlers can be set
+    only in the main thread: elsewhere the pool is stopped the same way with the handlers
+    left alone.
     """
     main = threading.current_thread() is threading.main_thread()
     stops = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
     before = {sig: signal.getsignal(sig) for sig in stops} if main else {}
-    during = {sig: raise_interrupt if sig != signal.SIGINT else handler
-              for sig, handler in before.items()}
+    # (a stop ignored on entering, as ``nohup`` ignores SIGHUP, stays ignored)
+    during = {sig: handler if sig == signal.SIGINT or handler is signal.SIG_IGN
+              else raise_interrupt for sig, handler in before.items()}
     try:
         for sig in _start_workers(pool, during):
             signal.raise_signal(sig)

@@ -28,7 +28,13 @@ from fetch_env.errors import (
 )
 from fetch_env.layouts import single_block
 from fetch_env.materials import Material
-from fetch_env.parallel import WorkerLostError, outcome, pool_context, run_ahead
+from fetch_env.parallel import (
+    WorkerLostError,
+    outcome,
+    pool_context,
+    run_ahead,
+    stop_exit_code,
+)
 from fetch_env.probes import PROBE_CALIBRATIONS, PROBE_PRESETS, run_probes, simulate_probes
 from tests.cli_helpers import assert_one_line_error, run_cli
 
@@ -191,11 +197,12 @@ def _sleep(seconds: float) -> float:
     return seconds
 
 
-def _child_pids() -> set[int]:
-    """This process's child processes, as the kernel has them (a worker forked but never
-    recorded by the pool shows here, not in ``multiprocessing.active_children()``)."""
+def _child_pids(pid: int | str = "self") -> set[int]:
+    """A process's child processes (this one's by default), as the kernel has them (a worker
+    forked but never recorded by the pool shows here, not in
+    ``multiprocessing.active_children()``)."""
     pids: set[int] = set()
-    for task in Path("/proc/self/task").glob("*"):
+    for task in Path(f"/proc/{pid}/task").glob("*"):
         try:
             pids.update(int(pid) for pid in (task / "children").read_text().split())
         except FileNotFoundError:  # a thread that ended meanwhile
@@ -318,3 +325,56 @@ def test_cli_workers(capsys: pytest.CaptureFixture[str]) -> None:
     assert "--workers 2 applies to the precise, repeated, measure probes" in err
     code, _, err = run_cli(["estimate", "--workers", "0"], capsys)
     assert_one_line_error(code, err)
+
+
+@pytest.mark.parametrize(("stop", "code"), [
+    (KeyboardInterrupt(), 130), (KeyboardInterrupt("SIGTERM"), 143),
+    (KeyboardInterrupt("SIGHUP"), 129), ("SIGTERM", 143), (None, 130),
+    (KeyboardInterrupt("not a signal"), 130), (KeyboardInterrupt(15), 130)])
+def test_stop_exit_code_is_128_plus_the_signal(stop: object, code: int) -> None:
+    assert stop_exit_code(stop) == code  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_estimate_stopped_mid_probes_exits_128_plus_the_signal(sig: signal.Signals) -> None:
+    """``food-fetch estimate --workers 2`` stopped while its workers simulate: one line
+    naming the stop, exit 128 + the signal's number (as a shell reports a process the
+    signal killed), no traceback."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "agents.cli", "estimate", "--workers", "2"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        cwd=Path(__file__).resolve().parents[1])
+    deadline = time.monotonic() + 60.0
+    while len(_child_pids(proc.pid)) < 2 and time.monotonic() < deadline:
+        time.sleep(0.05)  # until both workers simulate the clamps
+    assert proc.poll() is None, "the estimate ended before its workers started"
+    time.sleep(0.5)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + sig, err
+    assert err.strip().splitlines() == [
+        "food-fetch: interrupted" + (" (SIGTERM)" if sig == signal.SIGTERM else "")], err
+
+
+NOHUP_RUN = """
+import signal, time
+from fetch_env.parallel import run_ahead
+signal.signal(signal.SIGHUP, signal.SIG_IGN)  # as nohup starts a command
+print(run_ahead([(time.sleep, (2.0,)), (time.sleep, (2.0,))], 2), flush=True)
+"""
+
+
+def test_a_hangup_under_nohup_stops_neither_the_run_nor_its_workers() -> None:
+    """SIGHUP ignored when the run starts (``nohup``): a hangup sent to the whole process
+    group while the workers run ends nothing, and every task's result comes back."""
+    proc = subprocess.Popen([sys.executable, "-c", NOHUP_RUN], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            cwd=Path(__file__).resolve().parents[1])
+    deadline = time.monotonic() + 60.0
+    while len(_child_pids(proc.pid)) < 2 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.3)
+    os.killpg(proc.pid, signal.SIGHUP)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err
+    assert out.strip() == "[None, None]", out + err

@@ -1,9 +1,10 @@
 """The harnesses' streamed pool (benchmarks.validate_estimators.run_streamed): a stop keeps
-every finished record, a second stop signal during the shutdown is ignored, and the signal
-handlers in place before are back afterwards."""
+every finished record, a second stop signal during the shutdown is ignored, the signal
+handlers in place before are back afterwards, and the exit code names the stop."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import signal
@@ -12,7 +13,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from benchmarks.validate_estimators import run_streamed
+import pytest
+
+from benchmarks.validate_estimators import _write_results, run_streamed
 
 
 def _slow_record(i: int) -> dict[str, Any]:
@@ -39,3 +42,18 @@ def test_two_sigterms_keep_the_finished_records_and_restore_the_handlers(
     lines = [json.loads(line) for line in jsonl.read_text().splitlines()]
     assert sorted(r["food"]["index"] for r in lines) == [0, 1]
     assert signal.getsignal(signal.SIGTERM) == before
+
+
+@pytest.mark.parametrize(("stopped", "code"), [
+    ("interrupted (SIGINT)", 130), ("interrupted (SIGTERM)", 143),
+    ("interrupted (SIGHUP)", 129), ("a worker process died", 1)])
+def test_a_stopped_harness_exits_128_plus_the_signal(
+        tmp_path: Path, stopped: str, code: int, capsys: pytest.CaptureFixture[str]) -> None:
+    """The harness's exit code after a stop, as a shell reports a process the signal
+    killed; 1 for a lost worker. The line on stderr says why and where the foods are."""
+    args = argparse.Namespace(n=64, out=tmp_path)
+    jsonl = tmp_path / "run.jsonl"
+    assert _write_results(args, "run", [], {}, jsonl, stopped) == code
+    err = capsys.readouterr().err
+    assert err.strip() == (f"validate_estimators: {stopped}; 0 of 64 foods finished, kept in "
+                           f"{jsonl} (rerun with --resume to finish)")

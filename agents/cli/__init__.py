@@ -55,7 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     from fetch_env.errors import InvalidParameterError, SimulationDivergedError
-    from fetch_env.parallel import WorkerLostError
+    from fetch_env.parallel import WorkerLostError, stop_exit_code
 
     try:
         args = build_parser().parse_args(argv)
@@ -69,8 +69,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except WorkerLostError as exc:  # not the user's mistake: the machine's
         print(f"food-fetch: error: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print("food-fetch: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM / SIGHUP raised as one (its name)
+        name = exc.args[0] if exc.args and isinstance(exc.args[0], str) else ""
+        print(f"food-fetch: interrupted{f' ({name})' if name else ''}", file=sys.stderr)
+        return stop_exit_code(exc)
     return EXIT_USAGE
 
