@@ -30,7 +30,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import signal
 import statistics
 import sys
 import time
@@ -51,7 +50,7 @@ from agents.evaluate import _close_pool
 from benchmarks.bench_step_size import twin_of
 from benchmarks.readme_meta import meta, rewrite_block, write_json
 from fetch_env.layouts import Piece
-from fetch_env.parallel import raise_interrupt, worker_signals
+from fetch_env.parallel import stop_exit_code, stop_on_signals, worker_signals
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "validation" / "quasi-static-holds.md"
@@ -251,15 +250,14 @@ def main(argv: list[str] | None = None) -> int:
     runs = ["twin", *map(run_name, args.runs)]
     data: dict[str, Any] = {"meta": meta(), "seeds": list(args.seeds), "runs": runs[1:],
                             "summary": {}, "records": {}, "complete": False}
-    for sig in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, raise_interrupt)
+    stop_on_signals()
     try:
         _measure(args, runs, data)
     except (KeyboardInterrupt, BrokenProcessPool) as exc:
         why = "stopped" if isinstance(exc, KeyboardInterrupt) else "a worker died"
         kept = f"what finished is in {args.json}" if args.json else "--json FILE keeps it"
         print(f"bench_quasi_static: {why}; {kept} (\"complete\": false)", file=sys.stderr)
-        return 130 if isinstance(exc, KeyboardInterrupt) else 1
+        return stop_exit_code(exc) if isinstance(exc, KeyboardInterrupt) else 1
     print(page(data))
     return 0
 

@@ -29,7 +29,6 @@ import argparse
 import concurrent.futures as cf
 import json
 import math
-import signal
 import sys
 import time
 from collections.abc import Callable
@@ -50,7 +49,7 @@ from agents.evaluate import _close_pool  # noqa: E402
 from benchmarks.bench_quasi_static import seeded_twin  # noqa: E402
 from benchmarks.readme_meta import meta, rewrite_block, write_json  # noqa: E402
 from benchmarks.theta_sweep import LIFT_SPEED, OMEGA, seed_range  # noqa: E402
-from fetch_env.parallel import raise_interrupt, worker_signals  # noqa: E402
+from fetch_env.parallel import stop_exit_code, stop_on_signals, worker_signals  # noqa: E402
 
 # The best constant clamp angle of each id on these tuning scenes (docs/data/theta_sweep/).
 BEST_THETA = {"FoodFetch-Block-v1": 0.05, "FoodFetch-Row-v1": 0.03,
@@ -187,8 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         write_json(args.out, out)
         saved.append(True)
 
-    for sig in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, raise_interrupt)
+    stop_on_signals()
     try:
         _roll_all(ids, args.seeds, args.workers, records, save)
     except (KeyboardInterrupt, BrokenProcessPool) as exc:
@@ -196,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
         kept = (f"what finished is in {args.out} (\"complete\": false)" if saved
                 else f"no scene finished; {args.out} is as it was")
         print(f"carry_roll: {why}; {kept}", file=sys.stderr)
-        return 130 if isinstance(exc, KeyboardInterrupt) else 1
+        return stop_exit_code(exc) if isinstance(exc, KeyboardInterrupt) else 1
     save(complete=True)
     for i in ids:
         print(i, summarize(records[i]))

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import signal
 import sys
 import warnings
 from concurrent.futures import ProcessPoolExecutor
@@ -47,7 +46,7 @@ sys.path.insert(0, str(ROOT))
 
 from benchmarks.readme_meta import meta, write_json  # noqa: E402
 from benchmarks.theta_sweep import seed_range  # noqa: E402
-from fetch_env.parallel import raise_interrupt, worker_signals  # noqa: E402
+from fetch_env.parallel import stop_exit_code, stop_on_signals, worker_signals  # noqa: E402
 
 SQUEEZES = (0.0, 0.02, 0.04, 0.06, 0.08, 0.10, 0.12, 0.15, 0.18, 0.22, 0.27)
 SPEEDS = ((0.4, 0.04), (0.2, 0.02))  # (omega [rad/s], lift_speed [m/s])
@@ -214,15 +213,14 @@ def main(argv: list[str] | None = None) -> int:
             done[row["seed"]] = row
     todo = [s for s in seeds if s not in done]
     out.parent.mkdir(parents=True, exist_ok=True)
-    for sig in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, raise_interrupt)
+    stop_on_signals()
     try:
         _run_scenes(args, todo, stream, done)
     except (KeyboardInterrupt, BrokenProcessPool) as exc:
         why = "stopped" if isinstance(exc, KeyboardInterrupt) else "a worker process died"
         print(f"{why}; the {len(done)} finished scenes are in {stream}; rerun the same "
               "command to continue", file=sys.stderr)
-        return 130 if isinstance(exc, KeyboardInterrupt) else 1
+        return stop_exit_code(exc) if isinstance(exc, KeyboardInterrupt) else 1
     rows = [done[s] for s in seeds]
     summary = summarize(rows)
     fast = max(o for o, _ in args.speeds)

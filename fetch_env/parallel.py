@@ -28,7 +28,8 @@ from fetch_env.clipping import rewarn
 from fetch_env.errors import require, require_int
 
 __all__ = ["Task", "WorkerLostError", "end_workers", "outcome", "pool_context",
-           "raise_interrupt", "run_ahead", "stop_exit_code", "stopping", "worker_signals"]
+           "raise_interrupt", "run_ahead", "stop_exit_code", "stop_on_signals", "stopping",
+           "worker_signals"]
 
 # One simulation: a module-level function (picklable) and its arguments.
 Task = tuple[Callable[..., Any], tuple[Any, ...]]
@@ -138,6 +139,15 @@ def worker_signals() -> None:
 def raise_interrupt(signum: int, _frame: Any) -> None:
     """A signal handler that stops the main process as Ctrl-C does, naming the signal."""
     raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
+def stop_on_signals() -> None:
+    """Make SIGTERM and SIGHUP stop this process as Ctrl-C does (:func:`raise_interrupt`;
+    call it from the main thread), except one ignored now (``nohup`` ignores SIGHUP), which
+    stays ignored."""
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            signal.signal(sig, raise_interrupt)
 
 
 def stop_exit_code(interrupt: BaseException | str | None) -> int:

@@ -34,6 +34,7 @@ from fetch_env.parallel import (
     pool_context,
     run_ahead,
     stop_exit_code,
+    stop_on_signals,
 )
 from fetch_env.probes import PROBE_CALIBRATIONS, PROBE_PRESETS, run_probes, simulate_probes
 from tests.cli_helpers import assert_one_line_error, run_cli
@@ -378,3 +379,20 @@ def test_a_hangup_under_nohup_stops_neither_the_run_nor_its_workers() -> None:
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err
     assert out.strip() == "[None, None]", out + err
+
+
+def test_stop_on_signals_leaves_an_ignored_hangup_ignored() -> None:
+    """The benchmarks' stop handlers: SIGTERM raises ``KeyboardInterrupt("SIGTERM")``,
+    SIGHUP ignored beforehand (``nohup``) stays ignored."""
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
+        stop_on_signals()
+        assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+        assert signal.getsignal(signal.SIGTERM) is fetch_env.parallel.raise_interrupt
+        with pytest.raises(KeyboardInterrupt, match="SIGTERM") as stop:
+            signal.raise_signal(signal.SIGTERM)
+        assert stop_exit_code(stop.value) == 143
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler)
