@@ -95,14 +95,17 @@ def _same(a: dict[str, float], b: dict[str, float]) -> bool:
         a[k] == b[k] or (math.isnan(a[k]) and math.isnan(b[k])) for k in a)
 
 
+def committed_path(directory: Path, set_name: str, preset: str, noise: float) -> Path:
+    """The harness's calibrated run of these settings in ``directory``."""
+    return directory / f"{set_name}_{preset}_noise{noise:g}.json"
+
+
 def committed_mismatches(directory: Path, set_name: str, preset: str, noise: float,
                          foods: list[Food], estimates: list[dict[str, float]]
                          ) -> tuple[int, list[int]]:
     """(foods compared, indices whose estimates differ) against the harness's committed
-    records of these foods; refused in one line where the file is missing."""
-    path = directory / f"{set_name}_{preset}_noise{noise:g}.json"
-    if not path.exists():
-        raise SystemExit(f"--check-against: no {path}")
+    records of these foods."""
+    path = committed_path(directory, set_name, preset, noise)
     by_index = {r["food"]["index"]: r for r in json.loads(path.read_text())["records"]}
     compared, differ = 0, []
     for food, est in zip(foods, estimates, strict=True):
@@ -150,8 +153,14 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     for noise in args.noise:
         if not 0.0 <= noise <= 0.5:
             p.error(f"--noise must be in [0, 0.5], got {noise:g}")
-    if args.check_against is not None and not args.check_against.is_dir():
-        p.error(f"--check-against: no folder {args.check_against}")
+    args.noise = list(dict.fromkeys(args.noise))  # each level once
+    if args.check_against is not None:
+        if not args.check_against.is_dir():
+            p.error(f"--check-against: no folder {args.check_against}")
+        for noise in args.noise:
+            path = committed_path(args.check_against, args.set_name, args.preset, noise)
+            if not path.exists():
+                p.error(f"--check-against: no {path} (run the harness with these settings)")
     return args
 
 

@@ -55,6 +55,8 @@ def test_a_food_fitted_as_the_harness_committed(tmp_path: Path) -> None:
     (["--repeats", "0"], "--repeats must be >= 1, got 0"),
     (["--noise", "0.7"], "--noise must be in [0, 0.5], got 0.7"),
     (["--check-against", "no/such/folder"], "--check-against: no folder no/such/folder"),
+    (["--set", "corners", "--check-against", "docs/data/validation"],
+     "--check-against: no docs/data/validation/corners_precise_noise0.json"),
 ])
 def test_bad_arguments_one_line_before_any_work(args: list[str], says: str) -> None:
     run = subprocess.run([sys.executable, str(SCRIPT), *args], capture_output=True,
