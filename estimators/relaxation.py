@@ -515,9 +515,15 @@ def fit_hold_relaxation(t: ArrayLike, M: ArrayLike, t_d: float, drift: bool = Fa
     that with ``drift`` only the refit with the line runs; the result is the same.
 
     Raises:
-        EstimationError: fewer than 10 hold samples, or a ``t_d`` that is not a real number.
+        EstimationError: fewer than 10 hold samples, a ``t_d`` that is not a finite number,
+            ``drift`` not a bool or ``plain`` not a :class:`HoldFit` (or None).
     """
     t_d = real("t_d", t_d)
+    if not math.isfinite(t_d):
+        raise EstimationError(f"t_d must be a finite time in s, got {t_d!r}")
+    instance("drift", drift, bool | np.bool_, "True or False")
+    if plain is not None:
+        instance("plain", plain, HoldFit, "a HoldFit (fit_hold_relaxation) or None")
     tt, traces = check_traces(t, min_samples=1, M=M)
     m = traces["M"]
     hold = tt > t_d

@@ -68,12 +68,12 @@ class ClampGeometry:
     theta_0: float
 
     def __post_init__(self) -> None:
-        real("L", self.L)
-        real("theta_0", self.theta_0)
-        if not (np.isfinite(self.L) and 0.0 < self.L <= MAX_LEVER_ARM):
+        # (checked as floats: numpy cannot test an integer too large for int64)
+        lever, theta_0 = real("L", self.L), real("theta_0", self.theta_0)
+        if not (np.isfinite(lever) and 0.0 < lever <= MAX_LEVER_ARM):
             raise EstimationError(f"lever arm L must be in (0, {MAX_LEVER_ARM:g}] m, "
                                   f"got {self.L!r}")
-        if not (np.isfinite(self.theta_0) and abs(self.theta_0) < np.pi / 2):
+        if not (np.isfinite(theta_0) and abs(theta_0) < np.pi / 2):
             raise EstimationError(f"theta_0 must be within (-pi/2, pi/2) rad, got "
                                   f"{self.theta_0!r}")
 

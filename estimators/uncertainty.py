@@ -74,11 +74,19 @@ class HoldWithIntervals:
 
 def log_interval(value: float, sd_log: float, z: float = Z95) -> tuple[float, float]:
     """``value * exp(+-z sd_log)`` (a positive quantity's interval on the log scale); NaN
-    where ``value`` is not finite and positive or ``sd_log`` not finite."""
+    where ``value`` is not finite and positive or ``sd_log`` or ``z`` not finite; (0, inf)
+    where the half-width ``|z sd_log|`` is past what a float's exponential holds (~709)."""
     value, sd_log, z = real("value", value), real("sd_log", sd_log), real("z", z)
-    if not (math.isfinite(value) and value > 0 and math.isfinite(sd_log)):
+    if not (math.isfinite(value) and value > 0 and math.isfinite(sd_log)
+            and math.isfinite(z)):
         return (math.nan, math.nan)
-    return (value * math.exp(-z * sd_log), value * math.exp(z * sd_log))
+    half = abs(z * sd_log)
+    if half > _MAX_LOG_HALF_WIDTH:
+        return (0.0, math.inf)
+    return (value * math.exp(-half), value * math.exp(half))
+
+
+_MAX_LOG_HALF_WIDTH = 700.0  # math.exp overflows a float just above 709
 
 
 def _lag1(r: np.ndarray) -> float:

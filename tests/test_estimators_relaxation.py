@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -485,3 +487,19 @@ def test_hold_fit_keeps_the_rate_non_negative_where_lm_finds_a_negative_one() ->
     hf = fit_hold_relaxation(2.0 + s, y, 2.0 - 1e-9)
     assert hf.lam >= 0.0
     assert not hf.relaxes
+
+
+@pytest.mark.parametrize(("kwargs", "says"), [
+    ({"t_d": -math.inf}, "t_d must be a finite time"),
+    ({"t_d": math.nan}, "t_d must be a finite time"),
+    ({"drift": [1]}, "drift must be True or False"),
+    ({"drift": np.ones(3)}, "drift must be True or False"),
+    ({"drift": True, "plain": [0, 1]}, "plain must be a HoldFit"),
+])
+def test_hold_fit_refuses_bad_arguments_naming_them(kwargs: dict, says: str) -> None:
+    """Each bad argument is the package's error naming it, not numpy's LinAlgError, an
+    ambiguous truth value or an AttributeError."""
+    t = np.arange(30.0)
+    args = {"t": t, "M": 1.0 + np.exp(-t / 5.0), "t_d": 1.0, **kwargs}
+    with pytest.raises(EstimationError, match=says):
+        fit_hold_relaxation(**args)

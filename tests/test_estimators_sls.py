@@ -130,5 +130,10 @@ def test_params_and_geometry_validation() -> None:
         SLSParams(1.0, 1.0, 0.0)
     with pytest.raises(EstimationError, match="L"):
         ClampGeometry(0.0, 0.17)
+    # an integer past int64 is a number too large, not a TypeError from numpy
+    with pytest.raises(EstimationError, match="lever arm L must be in"):
+        ClampGeometry(2**70, 0.17)
+    with pytest.raises(EstimationError, match="theta_0"):
+        ClampGeometry(0.05, -(2**70))
     with pytest.raises(EstimationError, match="g1"):
         SLSParams.from_prony(1.0, 1.5, 1.0)

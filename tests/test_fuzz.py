@@ -278,8 +278,13 @@ def test_step_gives_a_transition_or_a_typed_error(env: Any, action: Any) -> None
 
 
 def _is_valid(action: Any) -> bool:
+    """Whether the env takes ``action``: 3 finite numbers (text that numpy would parse as a
+    number is refused, as is complex)."""
     try:
-        a = np.asarray(action, dtype=float)
+        raw = np.asarray(action)
+        if raw.dtype.kind not in "biufO":
+            return False
+        a = raw.astype(float)
     except (TypeError, ValueError):
         return False
     return a.shape == (3,) and bool(np.isfinite(a).all())

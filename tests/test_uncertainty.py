@@ -88,6 +88,12 @@ def test_log_interval() -> None:
     assert_allclose(log_interval(2.0, 0.1), (2.0 * math.exp(-0.196), 2.0 * math.exp(0.196)),
                     rtol=1e-3)
     assert all(math.isnan(v) for v in log_interval(-1.0, 0.1))
+    assert all(math.isnan(v) for v in log_interval(2.0, 0.1, z=math.inf))
+    # a half-width past a float's exponential: no information, not an OverflowError
+    assert log_interval(1.0, 1e300) == (0.0, math.inf)
+    assert log_interval(1.0, -1e300) == (0.0, math.inf)
+    assert log_interval(3.0, 350.0, z=2.0) == pytest.approx((3.0 * math.exp(-700.0),
+                                                            3.0 * math.exp(700.0)))
 
 
 
