@@ -55,8 +55,6 @@ def test_a_food_fitted_as_the_harness_committed(tmp_path: Path) -> None:
     (["--repeats", "0"], "--repeats must be >= 1, got 0"),
     (["--noise", "0.7"], "--noise must be in [0, 0.5], got 0.7"),
     (["--check-against", "no/such/folder"], "--check-against: no folder no/such/folder"),
-    (["--set", "corners", "--check-against", "docs/data/validation"],
-     "--check-against: no docs/data/validation/corners_precise_noise0.json"),
 ])
 def test_bad_arguments_one_line_before_any_work(args: list[str], says: str) -> None:
     run = subprocess.run([sys.executable, str(SCRIPT), *args], capture_output=True,
@@ -64,3 +62,13 @@ def test_bad_arguments_one_line_before_any_work(args: list[str], says: str) -> N
     assert run.returncode == 2
     assert says in run.stderr
     assert "Traceback" not in run.stderr
+
+
+def test_a_missing_committed_run_is_refused_before_any_simulation(tmp_path: Path) -> None:
+    """--check-against names the harness's run it lacks, in one line, before simulating."""
+    run = subprocess.run([sys.executable, str(SCRIPT), "--noise", "0", "0.01",
+                          "--check-against", str(tmp_path)], capture_output=True, text=True,
+                         timeout=60, cwd=ROOT)
+    assert run.returncode == 2
+    assert f"--check-against: no {tmp_path / 'reporting_precise_noise0.json'}" in run.stderr
+    assert "Traceback" not in run.stderr and run.stdout == ""
