@@ -170,10 +170,9 @@ def run_episode(task: Task) -> dict[str, Any]:
 def _init_worker() -> None:
     """A worker leaves Ctrl-C to the parent (the terminal sends it to the whole group) and
     dies at once on SIGTERM or SIGHUP (the parent stops the run and reruns nothing)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    for sig in (signal.SIGTERM, signal.SIGHUP):
-        if signal.getsignal(sig) is not signal.SIG_IGN:  # nohup: stays ignored
-            signal.signal(sig, signal.SIG_DFL)
+    from fetch_env.parallel import worker_signals
+
+    worker_signals()  # (a signal ignored under nohup stays ignored)
     try:
         import torch
 

@@ -23,7 +23,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -37,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.readme_meta import meta, write_json
 from benchmarks.validate_estimators import SETS, SPEED_BARS, food_seed, foods_of
 from fetch_env.food_space import Food
-from fetch_env.parallel import run_ahead
+from fetch_env.parallel import WorkerLostError, run_ahead, stop_exit_code, stop_on_signals
 from fetch_env.probes import (
     PROBE_CALIBRATIONS,
     PROBE_PRESETS,
@@ -166,6 +165,20 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parse(argv)
+    stop_on_signals()
+    try:
+        return _run(args)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM / SIGHUP raised as one
+        print(f"bench_fits: stopped ({exc.args[0] if exc.args else 'SIGINT'}) before every "
+              "food was timed; nothing written (a figure needs every food)", file=sys.stderr)
+        return stop_exit_code(exc)
+    except WorkerLostError as exc:
+        print(f"bench_fits: {exc}; nothing written", file=sys.stderr)
+        return 1
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Simulate, time the fits, write the JSON; 1 where an estimate did not reproduce."""
     info = meta()
     start = time.perf_counter()
     foods = foods_of(args.set_name, args.n)
@@ -191,9 +204,6 @@ def main(argv: list[str] | None = None) -> int:
                 args.check_against, args.set_name, args.preset, noise, foods, estimates)
         result["fits"][f"{noise:g}"] = entry
         print(_line(noise, entry, len(foods), args.repeats), flush=True)
-    total = sim_cpu + np.array([statistics.median(col) for col in np.array(
-        result["fits"][f"{args.noise[0]:g}"]["timings_s"]).T])
-    result["total_cpu_s"] = total.tolist()
     result["meta"]["wall_s"] = round(time.perf_counter() - start, 1)
     if args.out is not None:
         write_json(args.out, result)

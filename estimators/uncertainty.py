@@ -38,10 +38,14 @@ from estimators.relaxation import (
 )
 from estimators.sls import ClampGeometry
 
-__all__ = ["DRIFT_DIAGNOSTICS", "INTERVAL_SCALE", "WINDOW_SHIFTS", "HoldWithIntervals",
-           "drift_diagnostics", "hold_diagnostics", "hold_with_intervals", "log_interval"]
+__all__ = ["DRIFT_DIAGNOSTICS", "INTERVAL_SCALE", "MAX_LOG_HALF_WIDTH", "WINDOW_SHIFTS",
+           "HoldWithIntervals", "drift_diagnostics", "hold_diagnostics", "hold_with_intervals",
+           "log_interval"]
 
 Z95 = 1.959963984540054
+# [log units] the widest half-width an interval is computed for: math.exp overflows a
+# float just above 709; past it an interval is (0, inf)
+MAX_LOG_HALF_WIDTH = 700.0
 INTERVAL_SCALE = 1.0
 # (share of the hold span dropped at the start, share dropped at the end)
 WINDOW_SHIFTS: tuple[tuple[float, float], ...] = ((0.15, 0.0), (0.0, 0.3))
@@ -81,12 +85,10 @@ def log_interval(value: float, sd_log: float, z: float = Z95) -> tuple[float, fl
             and math.isfinite(z)):
         return (math.nan, math.nan)
     half = abs(z * sd_log)
-    if half > _MAX_LOG_HALF_WIDTH:
+    if half > MAX_LOG_HALF_WIDTH:
         return (0.0, math.inf)
     return (value * math.exp(-half), value * math.exp(half))
 
-
-_MAX_LOG_HALF_WIDTH = 700.0  # math.exp overflows a float just above 709
 
 
 def _lag1(r: np.ndarray) -> float:

@@ -82,7 +82,13 @@ from estimators import (
     estimate_three_step,
 )
 from estimators.calibration import ERROR_TARGETS, Calibration
-from estimators.uncertainty import DRIFT_DIAGNOSTICS, Z95, hold_with_intervals, log_interval
+from estimators.uncertainty import (
+    DRIFT_DIAGNOSTICS,
+    MAX_LOG_HALF_WIDTH,
+    Z95,
+    hold_with_intervals,
+    log_interval,
+)
 from estimators.uncertainty import drift_diagnostics as uncertainty_drift
 from fetch_env.controller import (
     PHASE_CODE,
@@ -1241,12 +1247,10 @@ def _interval_half_widths(widths: dict[str, float], g1: float) -> dict[str, floa
 def _log_width_interval(value: float, half_width: float) -> tuple[float, float]:
     """``value * exp(+-half_width)``; (0, inf) where the half-width is too wide for a float
     (an error model fitted on a user's own foods can predict one), NaN where it is NaN."""
-    if half_width > _MAX_LOG_HALF_WIDTH:
+    if half_width > MAX_LOG_HALF_WIDTH:
         return 0.0, math.inf
     return value * math.exp(-half_width), value * math.exp(half_width)
 
-
-_MAX_LOG_HALF_WIDTH = 700.0  # math.exp overflows a float just above 709
 
 
 def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometry | None = None,

