@@ -490,8 +490,8 @@ class Reliability(TypedDict, total=False):
 # under 2 % unreliable: without noise 0 of 21 over 5 % reliable and 47-51 of 451 under 2 %
 # unreliable (11 %); with 1 % noise 0 of 11 and 39-43 of 174 (24 %).  mu's interval within
 # +-7 % flagged 62-67 and 50-54; within +-12 % let one miss through on one fold seed, +-15 %
-# on every seed; the slides' spread at 0.01 or 0.02 flagged up to 2 more foods, and no limit
-# on it one fewer.
+# on every seed; the slides' spread at 0.01 flagged 3-5 more foods, at 0.02 the same as at
+# 0.03, and no limit on it 1-2 fewer.
 RELIABILITY: dict[str, Reliability] = {
     "precise": {"reliable_half_width": {"g1": 0.1, "tau1": 0.1, "mu": 0.1},
                 "reliable_diagnostics": {"repeat_sd_log_g1": 0.03, "repeat_sd_log_tau1": 0.06,
