@@ -90,7 +90,6 @@ def log_interval(value: float, sd_log: float, z: float = Z95) -> tuple[float, fl
     return (value * math.exp(-half), value * math.exp(half))
 
 
-
 def _lag1(r: np.ndarray) -> float:
     if r.size < 4:
         return 0.0
