@@ -340,6 +340,14 @@ def test_stop_exit_code_is_128_plus_the_signal(stop: object, code: int) -> None:
     assert stop_exit_code(stop) == code  # type: ignore[arg-type]
 
 
+def _default_stop_signals() -> None:
+    """In the child: SIGINT and SIGTERM at their defaults, whatever the test runner's (a
+    shell's background job starts with SIGINT ignored, and an ignored signal stays ignored:
+    the estimate would then rightly run on)."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_estimate_stopped_mid_probes_exits_128_plus_the_signal(sig: signal.Signals) -> None:
     """``food-fetch estimate --workers 2`` stopped while its workers simulate: one line
@@ -348,7 +356,7 @@ def test_estimate_stopped_mid_probes_exits_128_plus_the_signal(sig: signal.Signa
     proc = subprocess.Popen(
         [sys.executable, "-m", "agents.cli", "estimate", "--workers", "2"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        cwd=Path(__file__).resolve().parents[1])
+        cwd=Path(__file__).resolve().parents[1], preexec_fn=_default_stop_signals)
     deadline = time.monotonic() + 60.0
     while len(_child_pids(proc.pid)) < 2 and time.monotonic() < deadline:
         time.sleep(0.05)  # until both workers simulate the clamps
