@@ -441,10 +441,22 @@ ERROR_INPUTS: dict[str, tuple[str, ...]] = {
 # 170-173), and g1's from 68-75 to 61-66, coverage unchanged within 0.6 points; hinges at
 # 1 and 3 %, 2 and 5 % or 1, 3 and 6 % did no better, and one on mu's slides' spread (at
 # 0.3 and 1 %, or at 1 %) no better for mu.
+# mu also takes whether the traces carry sensor noise, read from the hold fit's residual as
+# a hinge ("log_rms>0.003": 0 on a calm hold, how far log rms is past log 0.003 on a noisy
+# one): mu's noise part (log_sd_noise_mu) is the slide's own stick-slip scatter on a calm
+# trace and mostly sensor noise on a noisy one, and predicts a different error in each.  On
+# the same foods (8-fold, fold seeds 0-2, at the limits of benchmarks/validate_estimators.py
+# RELIABILITY before this input: mu's interval within +-10 %) it cut the good foods flagged
+# unreliable without noise from 47-51 to 30-31 of 451 (with 1 % noise 39-43 -> 45-48 of
+# 174-177), mu's coverage 97.7-97.9 -> 97.3-97.5 % (with noise 94.5-95.7 -> 96.5-96.9 %).
+# log_rms itself, a log-linear term, did as well there but narrows mu's interval on ever
+# calmer holds, where mu's error does not follow: on a reporting food whose hold was
+# exceptionally calm (rms e^-13) it called a 7 % mu miss reliable.  Knees at 0.01 and 0.02
+# flagged as many and let a miss through at +-12 %.
 OPTIONAL_ERROR_INPUTS: dict[str, tuple[str, ...]] = {
     "g1": ("log_repeat_sd_log_g1", "log_repeat_sd_log_g1>0.03"),
     "tau1": ("log_repeat_sd_log_tau1", "log_repeat_sd_log_tau1>0.03"),
-    "mu": ("log_mu_trials",),
+    "mu": ("log_mu_trials", "log_rms>0.003"),
 }
 # The targets every error model has; the others (K_el) it has where it was fitted on
 # residuals of them (a model saved without one still loads, and leaves those intervals be).
