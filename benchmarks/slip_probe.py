@@ -144,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
         if stopped:
             print(f"slip_probe: {stopped}; {len(records)} of {args.n} foods of {name!r} kept "
                   f"in {args.work} (rerun the same command to finish)", file=sys.stderr)
-            return 130 if "interrupted" in stopped else 1
+            return ve.stopped_exit_code(stopped)
         index = {f.index for f in foods}
         mine = sorted((r for r in records if r["food"]["index"] in index),
                       key=lambda r: r["food"]["index"])

@@ -659,6 +659,18 @@ def main(argv: list[str] | None = None) -> int:
         return _write_results(args, name, records, meta, jsonl, stopped)
 
 
+def stopped_exit_code(stopped: str) -> int:
+    """The exit code of a run that :func:`run_streamed` or :func:`run_streamed_on_ray`
+    reports ``stopped``: 128 + the signal's number for a stop by a signal ("interrupted
+    (SIGTERM)": 143; 130 for Ctrl-C, 129 for SIGHUP), 1 for any other (a lost worker, a
+    cluster gone, a task that raised), 0 for none ("")."""
+    if not stopped:
+        return 0
+    if stopped.startswith("interrupted"):
+        return stop_exit_code(stopped.removeprefix("interrupted (").removesuffix(")"))
+    return 1
+
+
 def _write_results(args: argparse.Namespace, name: str, records: list[dict[str, Any]],
                    meta: dict[str, Any], jsonl: Path, stopped: str) -> int:
     """Write the run's outputs (those of the finished foods where it ``stopped``, saying
@@ -670,9 +682,7 @@ def _write_results(args: argparse.Namespace, name: str, records: list[dict[str, 
             write_outputs(args.out, name, records, meta)
         print(f"validate_estimators: {stopped}; {len(records)} of {args.n} foods finished, kept "
               f"in {jsonl} (rerun with --resume to finish)", file=sys.stderr)
-        if stopped.startswith("interrupted"):  # "interrupted (SIGTERM)"
-            return stop_exit_code(stopped.removeprefix("interrupted (").removesuffix(")"))
-        return 1
+        return stopped_exit_code(stopped)
     summary = write_outputs(args.out, name, records, meta)
     print(table(summary, name))
     return 0

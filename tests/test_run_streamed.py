@@ -15,6 +15,7 @@ from typing import Any
 
 import pytest
 
+from benchmarks import slip_probe
 from benchmarks.validate_estimators import _write_results, run_streamed
 
 
@@ -57,3 +58,14 @@ def test_a_stopped_harness_exits_128_plus_the_signal(
     err = capsys.readouterr().err
     assert err.strip() == (f"validate_estimators: {stopped}; 0 of 64 foods finished, kept in "
                            f"{jsonl} (rerun with --resume to finish)")
+
+
+@pytest.mark.parametrize(("stopped", "code"), [
+    ("interrupted (SIGTERM)", 143), ("interrupted (SIGHUP)", 129),
+    ("a worker process died", 1)])
+def test_a_stopped_slip_probe_benchmark_exits_as_the_harness_does(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, stopped: str, code: int) -> None:
+    """benchmarks/slip_probe.py streams through the same pool and exits with the same code
+    for the same stop (it gave 130 for any signal)."""
+    monkeypatch.setattr(slip_probe, "run_variant", lambda *a: ([], stopped))
+    assert slip_probe.main(["--n", "16", "--work", str(tmp_path)]) == code
