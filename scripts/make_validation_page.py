@@ -623,7 +623,6 @@ def block_calibration_section() -> str:
 
 
 LARGER_RUNS = ("reporting256_precise_noise0", "reporting256_precise_noise0.01")
-FIRST_REPORTING = 64  # the reporting runs' foods, the first of the larger draw's
 
 
 def larger_draw_section() -> str:
@@ -632,16 +631,18 @@ def larger_draw_section() -> str:
     the other 192 were never looked at while anything was chosen, so their coverage and
     flags are shown apart; 256 foods measure a coverage to a few points, 64 to ten."""
     loaded = [data for data in map(_committed, LARGER_RUNS) if data]
-    if len(loaded) < len(LARGER_RUNS):
+    reporting = _committed("reporting_precise_noise0")
+    if len(loaded) < len(LARGER_RUNS) or reporting is None:
         return ""
-    out = ["## A larger draw: 256 reporting foods\n\n"
-           f"The `precise` probes on the first 256 foods of the reporting design (seed "
+    n, first = loaded[0]["meta"]["n"], reporting["meta"]["n"]  # first: the reporting runs'
+    out = [f"## A larger draw: {n} reporting foods\n\n"
+           f"The `precise` probes on the first {n} foods of the reporting design (seed "
            f"{REPORTING_SEED}), calibrated, without and with 1 % sensor noise.  The first "
-           f"{FIRST_REPORTING} are the reporting runs' above (a Sobol' design's first points "
+           f"{first} are the reporting runs' above (a Sobol' design's first points "
            "do not depend on its length; their records were reused with `--resume`); the "
-           f"other {256 - FIRST_REPORTING} were not looked at while anything was chosen, so "
-           "the line under each table gives them apart.  256 foods measure a coverage to "
-           "a few points, where 64 measure it to about ten.  K1's largest error (+117 %) "
+           f"other {n - first} were not looked at while anything was chosen, so "
+           f"the line under each table gives them apart.  {n} foods measure a coverage to "
+           f"a few points, where {first} measure it to about ten.  K1's largest error (+117 %) "
            "is food 179, a 10 mm, 0.42 MPa ellipsoid whose elastic twin, which defines the "
            "truth (`fetch_env.probes.elastic_stiffness`), settles into one of two holds by "
            "where it is placed: at the centre and 2 um along the blade K1 + K2 is 1.84 kN/m, "
@@ -651,12 +652,11 @@ def larger_draw_section() -> str:
         meta = data["meta"]
         out.append(table(data["summary"], f"reporting set, {meta['n']} foods, seed "
                                           f"{meta['seed']}, noise {meta['noise']:g}"))
-        fresh = summarize([r for r in data["records"]
-                           if r["food"]["index"] >= FIRST_REPORTING])
+        fresh = summarize([r for r in data["records"] if r["food"]["index"] >= first])
         rel = fresh["reliability"]
         cover = ", ".join(f"{k} {coverage_text(fresh[k]['coverage'], fresh[k]['n_intervals'])}"
                           for k in ("g1", "tau1", "mu"))
-        out.append(f"\nThe {fresh['n_foods']} foods past the first {FIRST_REPORTING}: "
+        out.append(f"\nThe {fresh['n_foods']} foods past the first {first}: "
                    f"coverage {cover}; {rel['over_5pct_flagged_reliable']} of "
                    f"{rel['n_over_5pct']} foods with an error over 5 % flagged reliable, "
                    f"{rel['under_2pct_flagged_unreliable']} of {rel['n_under_2pct']} with "
