@@ -35,6 +35,11 @@ tau1 and mu, by maximum likelihood under a Laplace law (robust to the few foods 
 misses by far), times a multiplier that makes ``+-multiplier * sd`` cover 95 % of the
 reference foods.  The probes use it for their 95 % intervals and their ``reliable`` flag.
 
+Traces that carry sensor noise err otherwise than calm ones (a noisy slide's mu errs by its
+noise, a calm one's by its stick-slip), so an error model may hold a second model fitted on
+the noisy foods alone (:attr:`ErrorModel.noisy`, :func:`noisy_traces`), with a rule for
+``reliable`` of its own; a food is measured by the one its traces call for.
+
 The simulator's probes ship calibrations fitted on the validation harness's tuning foods
 (``fetch_env.probes``); a real robot's user fits their own from reference foods with
 :func:`fit_calibration` and :func:`fit_error_model`.
@@ -42,6 +47,7 @@ The simulator's probes ship calibrations fitted on the validation harness's tuni
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -58,6 +64,7 @@ __all__ = [
     "EXTRA_FEATURES",
     "FEATURES",
     "FORMS",
+    "NOISY_HOLD_RMS",
     "OPTIONAL_ERROR_INPUTS",
     "QUADRATIC_MIN_FOODS",
     "TARGETS",
@@ -70,6 +77,7 @@ __all__ = [
     "features",
     "fit_calibration",
     "fit_error_model",
+    "noisy_traces",
 ]
 
 FEATURES: tuple[str, ...] = ("1", "cube", "sphere", "log_size", "log_stiffness", "mu", "g1",
@@ -458,6 +466,21 @@ OPTIONAL_ERROR_INPUTS: dict[str, tuple[str, ...]] = {
     "tau1": ("log_repeat_sd_log_tau1", "log_repeat_sd_log_tau1>0.03"),
     "mu": ("log_mu_trials", "log_rms>0.003"),
 }
+# The hold fit's rms residual (of the log moment) above which a food's traces count as
+# carrying sensor noise (:func:`noisy_traces`): the knee of mu's "log_rms>0.003" input.  The
+# harness's tuning holds without added noise have log rms -7.5 median (90th percentile
+# -4.8, 18 % of them above the knee); with 1 % noise every one is above it (1st percentile
+# -4.3).
+NOISY_HOLD_RMS = 0.003
+
+
+def noisy_traces(diagnostics: Mapping[str, float]) -> bool:
+    """Whether a probed food's traces carry sensor noise: its hold fit's ``log_rms`` above
+    ``log(NOISY_HOLD_RMS)`` (False where the diagnostic is missing or not a number)."""
+    v = _number(mapping("diagnostics", diagnostics).get("log_rms", math.nan))
+    return math.isfinite(v) and v > math.log(NOISY_HOLD_RMS)
+
+
 # The targets every error model has; the others (K_el) it has where it was fitted on
 # residuals of them (a model saved without one still loads, and leaves those intervals be).
 ERROR_TARGETS: tuple[str, ...] = ("g1", "tau1", "mu")
@@ -524,6 +547,9 @@ class ErrorModel:
         repeated clamps' spread, which single out the foods the probes miss better than
         a width predicted from foods like it (chosen on the reference foods too).
     n_foods, source: for the record.
+    noisy: the model of the foods whose traces carry sensor noise (:func:`noisy_traces`),
+        fitted on those alone, with its own ``reliable_half_width`` and
+        ``reliable_diagnostics``; None: this model for every food (:meth:`for_food`).
     """
 
     centre: Mapping[str, Sequence[float]]
@@ -535,8 +561,12 @@ class ErrorModel:
     inputs: Mapping[str, Sequence[str]] = field(default_factory=dict)
     reliable_half_width: Mapping[str, float] = field(default_factory=dict)
     reliable_diagnostics: Mapping[str, float] = field(default_factory=dict)
+    noisy: ErrorModel | None = None
 
     def __post_init__(self) -> None:
+        instance("error model noisy", self.noisy, ErrorModel | None, "an ErrorModel or None")
+        if self.noisy is not None and self.noisy.noisy is not None:
+            raise EstimationError("an error model's noisy model cannot have one of its own")
         for name in ("centre", "spread", "coefficients", "multiplier", "inputs",
                      "reliable_half_width", "reliable_diagnostics"):
             mapping(f"error model {name}", getattr(self, name))
@@ -570,6 +600,11 @@ class ErrorModel:
         """The inputs of ``target``'s model."""
         return tuple(self.inputs.get(target, ERROR_INPUTS.get(target, ())))
 
+    def for_food(self, diagnostics: Mapping[str, float]) -> ErrorModel:
+        """The model that measures a food with these diagnostics: :attr:`noisy` where its
+        traces carry sensor noise and there is one, else this one."""
+        return self.noisy if self.noisy is not None and noisy_traces(diagnostics) else self
+
     def half_width(self, target: str, shape: str, size: float, estimate: Mapping[str, float],
                    diagnostics: Mapping[str, float]) -> float:
         """The 95 % half-width of ``log(estimate / truth)`` for one probed food.
@@ -594,7 +629,8 @@ class ErrorModel:
                 **{k: {t: (list(map(float, v)) if isinstance(v, Sequence) else float(v))
                        for t, v in getattr(self, k).items()}
                    for k in ("centre", "spread", "coefficients", "multiplier")},
-                **own, "n_foods": self.n_foods, "source": self.source}
+                **own, "n_foods": self.n_foods, "source": self.source,
+                **({"noisy": self.noisy.to_dict()} if self.noisy is not None else {})}
 
     @classmethod
     def from_dict(cls, data: Mapping[str, object]) -> ErrorModel:
@@ -619,8 +655,12 @@ class ErrorModel:
             if not isinstance(v, Mapping):
                 raise EstimationError(f"error model {k} must be a mapping, got {v!r}")
             rules[k] = dict(v)
+        noisy = data.get("noisy")
+        if noisy is not None and not isinstance(noisy, Mapping):
+            raise EstimationError(f"error model noisy must be a mapping, got {noisy!r}")
         return cls(**parts, n_foods=int(data.get("n_foods", 0)),  # type: ignore[arg-type]
-                   source=str(data.get("source", "")), inputs=own, **rules)
+                   source=str(data.get("source", "")), inputs=own, **rules,
+                   noisy=None if noisy is None else cls.from_dict(noisy))
 
 
 def _check_reliable_half_width(widths: Mapping[str, float]) -> None:
@@ -652,8 +692,10 @@ DEFAULT_ERROR_COVERAGE = 0.965
 def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0,
                     coverage: float = DEFAULT_ERROR_COVERAGE, source: str = "",
                     reliable_half_width: Mapping[str, float] | None = None,
-                    reliable_diagnostics: Mapping[str, float] | None = None) -> ErrorModel:
-    """Fit an :class:`ErrorModel` on reference foods.
+                    reliable_diagnostics: Mapping[str, float] | None = None,
+                    noisy: Mapping[str, Mapping[str, float]] | None = None) -> ErrorModel:
+    """Fit an :class:`ErrorModel` on reference foods, and, with ``noisy``, its
+    :attr:`ErrorModel.noisy` on those of them whose traces carry sensor noise.
 
     Args:
         rows: ``(shape, size, estimate, diagnostics, residual)`` per probed food: the probe's
@@ -672,12 +714,36 @@ def fit_error_model(rows: Sequence[ErrorRow], ridge: float = 1.0,
         reliable_half_width, reliable_diagnostics: the model's own
             :attr:`ErrorModel.reliable_half_width` and :attr:`ErrorModel.
             reliable_diagnostics`, if any.
+        noisy: the noisy model's ``reliable_half_width`` and ``reliable_diagnostics`` (a
+            mapping with either or both); None: no noisy model.  It is fitted, with the
+            same ``ridge`` and ``coverage``, on the rows :func:`noisy_traces` marks.
 
     Raises:
-        EstimationError: fewer usable foods for a target than three times its inputs, a
-            ``reliable_half_width`` or ``reliable_diagnostics`` as :class:`ErrorModel`
-            refuses, or a limit on a diagnostic that no row has.
+        EstimationError: fewer usable foods for a target than three times its inputs (of
+            all the rows, or of the noisy ones), a ``reliable_half_width`` or
+            ``reliable_diagnostics`` as :class:`ErrorModel` refuses, a limit on a
+            diagnostic that no row has, or a ``noisy`` with other keys.
     """
+    model = _fit_error_model(rows, ridge, coverage, source, reliable_half_width,
+                             reliable_diagnostics)
+    if noisy is None:
+        return model
+    rules = mapping("noisy", noisy)
+    extra = set(rules) - {"reliable_half_width", "reliable_diagnostics"}
+    if extra:
+        raise EstimationError(f"noisy takes reliable_half_width and reliable_diagnostics, "
+                              f"got {sorted(extra)}")
+    noisy_rows = [row for row in _records("rows", rows, 5)
+                  if isinstance(row[3], Mapping) and noisy_traces(row[3])]
+    sub = _fit_error_model(noisy_rows, ridge, coverage, f"{source} (noisy traces)".strip(),
+                           rules.get("reliable_half_width"), rules.get("reliable_diagnostics"))
+    return dataclasses.replace(model, noisy=sub)
+
+
+def _fit_error_model(rows: Sequence[ErrorRow], ridge: float, coverage: float, source: str,
+                     reliable_half_width: Mapping[str, float] | None,
+                     reliable_diagnostics: Mapping[str, float] | None) -> ErrorModel:
+    """:func:`fit_error_model` without its noisy model."""
     _positive_real("ridge", ridge, allow_zero=True)
     _positive_real("coverage", coverage)
     if coverage > 1:

@@ -111,6 +111,7 @@ from fetch_env.errors import (
 from fetch_env.layouts import Piece
 from fetch_env.parallel import Task, outcome, run_ahead
 from fetch_env.scene import Geometry, Scene, initial_state
+from fetch_env.slip_simex import LevelRule, Simex, simex_level
 from fetch_env.spaces import VISCO_NAMES
 
 PARAM_NAMES: tuple[str, ...] = ("K1", "K2", "B", "mu", "g1", "tau1")
@@ -196,9 +197,27 @@ ENVELOPE_QUANTILE = 0.99
 # 3 % from 3.5 / 12 / 16 % to 1.7 / 6.6 / 9.4 % (the worst 76 % against 45 %; two draws
 # each); c = 1.25 / 1.75 gave 0.73 / 2.9 / 6.8 % and 0.83 / 3.0 / 4.2 % with 1 % noise;
 # smoothing the forces first biased mu low instead (mean -1.6 to -4.8 %).
-SlipEnvelope = Literal["sum", "per_blade", "per_blade_denoised", "per_blade_slipping"]
+# "per_blade_simex": per_blade_slipping's level less the bias that sensor noise puts into
+# it, measured on the trace by simulation-extrapolation (fetch_env.slip_simex): copies of
+# the slide with more noise of the sensor's own kind read lower, and their levels,
+# extrapolated linearly in the noise's sd back to none, give the noise-free level.  Without
+# noise it reads exactly as per_blade_slipping (and so as per_blade).  Chosen on the 512
+# tuning foods' slides (precise probe, three slides, one 1 % noise draw each,
+# uncalibrated; median / 90th / 95th percentile / max of |mu error|, mean, foods past
+# 1.4 %): the slipping level 0.82 / 2.5 / 3.2 / 6.3 %, -1.1 %, 162; extrapolated from
+# lambda 0.5, 1, 1.5 and 2 with 10 copies each 0.47 / 1.5 / 1.9 / 4.1 %, -0.36 %, 62; from
+# lambda 1 and 3 with 5 or 10 copies 0.47 / 1.6 / 2.0 / 4.4 % and 0.42 / 1.5 / 1.9 / 4.3 %;
+# extrapolated linearly in lambda instead of the sd 0.69 / 1.9 / 2.7 / 5.0 % (first 60
+# foods, two draws: the bias grows with the sd, not the variance).  On the first 128 with
+# 0.3 % noise 0.40 / 1.0 / 1.3 / 2.7 % went to 0.24 / 0.8 / 1.0 / 5.3 % (the 5.3 % a
+# slippery cube whose noise-free reading is itself 1-6 % high: the extrapolation recovers
+# the noise-free reading, not mu), with 3 % from 1.6 / 7.0 / 8.3 / 11.6 % (21 foods past
+# 5 %) to 1.1 / 3.9 / 5.2 / 9.4 % (7 past 5 %).
+SlipEnvelope = Literal["sum", "per_blade", "per_blade_denoised", "per_blade_slipping",
+                       "per_blade_simex"]
 SLIP_ENVELOPES: tuple[SlipEnvelope, ...] = ("sum", "per_blade", "per_blade_denoised",
-                                            "per_blade_slipping")
+                                            "per_blade_slipping", "per_blade_simex")
+SLIP_SIMEX = Simex()
 NOISE_QUANTILE_Z = 2.326  # the standard normal's ENVELOPE_QUANTILE (0.99) quantile
 SLIPPING_TAIL = 1.5  # [noise sds] below the slipping level still read as slipping
 SLIPPING_ITERATIONS = 5
@@ -784,14 +803,23 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
     warns: list[str] = []
     by_blade = envelope != "sum"
     noise_sd = None
-    if envelope in ("per_blade_denoised", "per_blade_slipping"):
+    if envelope in ("per_blade_denoised", "per_blade_slipping", "per_blade_simex"):
         noise_sd = _settle_noise(tr["phase"], f)
         if noise_sd is None:
             warns.append("fewer than 5 samples before the blades touch: the envelope is not "
                          "corrected for sensor noise")
-    per_blade = (_per_blade_envelope(f, late, grip, noise_sd,
-                                     slipping=envelope == "per_blade_slipping")
+    slipping = envelope in ("per_blade_slipping", "per_blade_simex")
+    per_blade = (_per_blade_envelope(f, late, grip, noise_sd, slipping=slipping)
                  if by_blade else None)
+    if envelope == "per_blade_simex" and per_blade is not None and noise_sd is not None \
+            and min(noise_sd.values()) > 0:
+        level = simex_level({k: f[k][late] for k in keys}, noise_sd, per_blade[0],
+                            _level_rule(), SLIP_SIMEX)
+        if level is None or not level > 0:
+            warns.append("the slipping level's noise bias could not be extrapolated (noisy "
+                         "copies of the slide lost their grip): mu read without the correction")
+        else:
+            per_blade = (level, per_blade[1])
     if by_blade and per_blade is None:
         warns.append("fewer than 5 samples where both half-spoons grip: mu from the summed "
                      "forces' envelope")
@@ -816,7 +844,7 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
     # median |error| by 0.01 points and its 95th percentile not at all; on a synthetic,
     # perfectly steady slide the plateau is the steadier, sd 0.23 % against 0.29 %,
     # tests/test_slip_envelope.py).
-    level_read = (envelope == "per_blade_slipping" and per_blade is not None
+    level_read = (slipping and per_blade is not None
                   and noise_sd is not None and max(noise_sd.values()) > 0)
     if np.isfinite(plateau) and plateau >= env and not level_read:
         mu = plateau
@@ -900,6 +928,12 @@ def _slipping_level(ratio: np.ndarray, start: float, sd: float) -> float:
             break
         level = float(top.mean()) - shift
     return level
+
+
+def _level_rule() -> LevelRule:
+    """The slipping level's constants, as :mod:`fetch_env.slip_simex` reads many copies."""
+    return LevelRule(quantile=ENVELOPE_QUANTILE, noise_z=NOISE_QUANTILE_Z, tail=SLIPPING_TAIL,
+                     iterations=SLIPPING_ITERATIONS, min_share=NOISY_SLIP_MIN_SHARE)
 
 
 def _settle_noise(phase: np.ndarray, f: dict[str, np.ndarray]) -> dict[str, float] | None:
@@ -1226,7 +1260,9 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     ``details["error_half_width"]`` keeps the half-widths, and
     ``details["reliable_half_width"]`` and ``details["reliable_diagnostics"]`` the model's
     own widths and diagnostic limits for :attr:`ProbeOutcome.reliable`, where it has them
-    (a warning names the diagnostics past their limits).
+    (a warning names the diagnostics past their limits).  Where the model has a noisy model
+    and the food's traces carry sensor noise (:func:`estimators.calibration.noisy_traces`),
+    that one gives the widths and the limits.
     """
     require_type("calibration", calibration, Calibration, "a Calibration")
     require_type("out", out, ProbeOutcome, "a ProbeOutcome")
@@ -1253,9 +1289,10 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     out.details["calibration"] = calibration.source
     est.update(fixed)
     out.warnings += warns
-    model = calibration.error_model
-    if model is None:
+    if calibration.error_model is None:
         return
+    # the model for this food: the noisy one where its traces carry sensor noise
+    model = calibration.error_model.for_food(out.details.get("diagnostics", {}))
     widths = {}
     for k in model.targets:
         try:
@@ -1381,8 +1418,10 @@ def reads_drift(calibration: Calibration | None) -> bool:
     if calibration is None:
         return True
     read = set(calibration.feature_names)
-    if calibration.error_model is not None:
-        read |= set(calibration.error_model.reliable_diagnostics)
+    model = calibration.error_model
+    for m in (model, model and model.noisy):
+        if m is not None:
+            read |= set(m.reliable_diagnostics)
     return not read.isdisjoint(DRIFT_DIAGNOSTICS)
 
 
@@ -1541,7 +1580,7 @@ PROBE_PRESETS: dict[str, ProbeConfig] = {
     # percentile / max) is 0.87 / 2.7 / 3.1 / 6 %, against 1.38 / 3.7 / 4.7 / 7 % for the
     # denoised envelope (512 tuning foods, benchmarks/slip_probe.py; read from every
     # gripping sample, 0.77 / 2.8 / 4.1 / 19 % and 1.50 / 4.5 / 5.6 / 16 %).
-    "precise": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade_slipping",
+    "precise": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade_simex",
                            relaxation_repeats=7, contact_angle="camera",
                            relaxation_timestep=0.001, relaxation_impratio=1e4,
                            relaxation_contact_ratio=2.25, slip_gap=RELAXATION_GAP,

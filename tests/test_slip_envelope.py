@@ -99,9 +99,9 @@ def test_the_envelope_setting_is_validated() -> None:
         ProbeConfig(slip_envelope="max")
     assert PROBE_PRESETS["measure"].slip_envelope == "per_blade"
     assert PROBE_PRESETS["env"].slip_envelope == "sum"  # the environments' observations
-    assert PROBE_PRESETS["precise"].slip_envelope == "per_blade_slipping"
+    assert PROBE_PRESETS["precise"].slip_envelope == "per_blade_simex"
     assert set(SLIP_ENVELOPES) == {"sum", "per_blade", "per_blade_denoised",
-                                   "per_blade_slipping"}
+                                   "per_blade_slipping", "per_blade_simex"}
     with pytest.raises(InvalidParameterError, match="slip_gap"):
         ProbeConfig(slip_gap=-1e-4)
     with pytest.raises(InvalidParameterError, match="slip_gap"):
