@@ -11,7 +11,9 @@ preset's slip probe with some of those settings changed; the last two are the ``
 preset's, with one slide and with its three (0.3, 0.45 and 0.2 s, ``slip_repeats``) whose
 median is mu.  Each reads mu with the two half-spoons' envelopes (``per_blade``) and, where
 sensor noise is added, also less what the noise adds (``per_blade_denoised``) and refined to
-the level the ratio slips at (``per_blade_slipping``, the ``precise`` preset's).
+the level the ratio slips at (``per_blade_slipping``).  The ``precise`` preset reads that
+level with the bias noise leaves in it extrapolated away (``per_blade_simex``,
+``fetch_env.slip_simex``), which the validation harness's runs with noise measure.
 
     python benchmarks/slip_probe.py --n 512 --workers 2
 
