@@ -522,8 +522,8 @@ def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]
                reliability: Reliability | None = None) -> Calibration:
     """The calibration of ``form`` fitted on ``cal_records`` (a run without noise) and its
     error model on every run in ``runs`` (e.g. without and with noise), using only foods in
-    ``keep``; ``coverage`` and ``reliability`` (``reliable_half_width`` and
-    ``reliable_diagnostics``, :data:`RELIABILITY`) as
+    ``keep``; ``coverage`` and ``reliability`` (``reliable_half_width``,
+    ``reliable_diagnostics`` and ``noisy``, :data:`RELIABILITY`) as
     :func:`estimators.calibration.fit_error_model`'s."""
     def use(r: dict[str, Any]) -> bool:
         return "crash" not in r and (keep is None or r["food"]["index"] in keep)

@@ -18,8 +18,9 @@ line in the sd.  Its extra randomness is drawn from its own seeded generator, so
 is reproducible and leaves the caller's noise draws alone.
 
 :func:`slipping_levels` reads many copies at once (one row each); it returns, row by row,
-what :func:`fetch_env.probes.estimate_mu` reads from one trace with noise, which the tests
-check against the one-trace code.
+the level :func:`fetch_env.probes.estimate_mu` reads from one trace with noise (NaN where the
+faces do not both grip on 5 samples, where estimate_mu falls back to the summed forces'
+envelope), which the tests check against the one-trace code.
 """
 
 from __future__ import annotations
@@ -120,8 +121,10 @@ def slipping_levels(forces: dict[str, np.ndarray], noise_sd: dict[str, np.ndarra
 
     Args:
         forces: each of :data:`FORCES` as an (R, m) array: R copies of the late slide's m
-            samples.
-        noise_sd: each force's noise sd per row, (R,), all positive.
+            samples (finite: a non-finite sample is read as absent).
+        noise_sd: each force's noise sd per row, (R,), finite and non-negative, with one
+            positive per row (a face whose forces both read sd 0 reads its plain envelope,
+            as the one-trace code does).
         rule: how the level is read.
 
     Returns:
@@ -139,22 +142,54 @@ class Simex:
     """The settings of the extrapolation.
 
     Attributes:
-        lambdas: the added noise variances, in units of the sensor's.
-        replicates: noisy copies read at each of them.
-        seed: the copies' generator's seed.
+        lambdas: the added noise variances, in units of the sensor's: at least two
+            distinct positive numbers.
+        replicates: noisy copies read at each of them (at least 1).
+        seed: the copies' generator's seed (the same for every slide: a reading depends on
+            its trace alone).
+
+    Raises:
+        ValueError: settings outside those.
     """
 
     lambdas: tuple[float, ...] = (0.5, 1.0, 1.5, 2.0)
     replicates: int = 10
     seed: int = 20261201
 
+    def __post_init__(self) -> None:
+        lams = tuple(self.lambdas)
+        if not (all(isinstance(v, int | float) and not isinstance(v, bool)
+                    and math.isfinite(v) and v > 0 for v in lams) and len(set(lams)) >= 2):
+            raise ValueError(f"Simex lambdas must be at least two distinct positive numbers, "
+                             f"got {self.lambdas!r}")
+        if not (isinstance(self.replicates, int) and not isinstance(self.replicates, bool)
+                and self.replicates >= 1):
+            raise ValueError(f"Simex replicates must be an integer >= 1, got {self.replicates!r}")
+        if not (isinstance(self.seed, int) and not isinstance(self.seed, bool) and self.seed >= 0):
+            raise ValueError(f"Simex seed must be an integer >= 0, got {self.seed!r}")
+
 
 def simex_level(forces: dict[str, np.ndarray], noise_sd: dict[str, float], level: float,
                 rule: LevelRule, simex: Simex = Simex()) -> float | None:
     """The noise-free slipping level extrapolated from ``level``, the one read from the
-    recorded late slide ``forces`` (each of :data:`FORCES`, (m,)) with sensor noise of sd
-    ``noise_sd`` per force; None where fewer than two of the added noise levels gave a
-    level (the copies lost their grip)."""
+    recorded late slide ``forces`` (each of :data:`FORCES`, (m,), finite) with sensor noise
+    of sd ``noise_sd`` per force (finite, at least one positive; a force read without
+    noise gets none added); None where fewer than two of the added noise levels gave a
+    level (the copies lost their grip).
+
+    Raises:
+        ValueError: forces that are not finite 1-D arrays of one length, or noise sds that
+            are not finite and non-negative with one positive.
+    """
+    arrays = [np.asarray(forces[k], dtype=float) for k in FORCES]
+    if not (all(a.ndim == 1 and a.size == arrays[0].size for a in arrays)
+            and all(np.isfinite(a).all() for a in arrays)):
+        raise ValueError("simex_level needs each force as a finite 1-D array, all of one "
+                         "length")
+    sds = [float(noise_sd[k]) for k in FORCES]
+    if not (all(math.isfinite(v) and v >= 0 for v in sds) and max(sds) > 0):
+        raise ValueError(f"simex_level needs finite, non-negative noise sds with one positive, "
+                         f"got {dict(zip(FORCES, sds, strict=True))}")
     rng = np.random.default_rng(simex.seed)
     m = next(iter(forces.values())).size
     sds, means = [1.0], [level]

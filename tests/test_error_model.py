@@ -289,3 +289,24 @@ def test_the_noisy_model_round_trips_and_gives_noisy_foods_its_rule() -> None:
                    noisy=model)
     with pytest.raises(EstimationError, match="noisy takes"):
         fit_error_model(_two_regime_rows(600, 3), noisy={"coverage": 0.9})
+
+
+def test_a_noisy_rule_left_out_is_the_main_models_and_its_failures_name_the_noisy_rows() -> None:
+    """A noisy model's rule keys left out take the main model's; a noisy model that cannot
+    be fitted says how many noisy rows it had; one without a target of the main model's is
+    refused."""
+    rows = _two_regime_rows(600, 5)
+    model = fit_error_model(rows, reliable_half_width={"mu": 0.2},
+                            reliable_diagnostics={"mu_lr": 0.9},
+                            noisy={"reliable_diagnostics": {"mu_lr": 0.5}})
+    assert model.noisy is not None
+    assert model.noisy.reliable_half_width == {"mu": 0.2}
+    assert model.noisy.reliable_diagnostics == {"mu_lr": 0.5}
+    calm_only = [r for r in rows if not noisy_traces(r[3])] + rows[1:20:2]
+    with pytest.raises(EstimationError, match=r"noisy model \(10 of 310 rows"):
+        fit_error_model(calm_only, noisy={})
+    with_k_el = fit_error_model(_synthetic_rows(400, 1))
+    assert "K_el" in with_k_el.targets and "K_el" not in model.targets
+    with pytest.raises(EstimationError, match="noisy model must have its targets"):
+        ErrorModel(with_k_el.centre, with_k_el.spread, with_k_el.coefficients,
+                   with_k_el.multiplier, noisy=model.noisy)

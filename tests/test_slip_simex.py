@@ -47,6 +47,7 @@ def _late_slide(run: SimResult, noise: float, seed: int
 def test_many_copies_read_as_one_trace(make: object) -> None:
     """Row by row, :func:`slipping_levels` is the level the one-trace code reads (the
     firmly pressed samples, the denoised start, the refined level), within rounding."""
+    rows = []
     for seed in range(20):
         run = make(np.random.default_rng(seed))  # type: ignore[operator]
         f, late, noise_sd = _late_slide(run, 0.01, seed)
@@ -54,10 +55,13 @@ def test_many_copies_read_as_one_trace(make: object) -> None:
         grip = normal > 0.05 * normal.max()
         one = probes._per_blade_envelope(f, late, grip, noise_sd, slipping=True)
         assert one is not None
-        many = slipping_levels({k: np.stack([f[k][late]] * 3) for k in FORCES},
-                               {k: np.full(3, noise_sd[k]) for k in FORCES},
-                               probes._level_rule())
-        assert_allclose(many, one[0], rtol=1e-12)
+        rows.append(({k: f[k][late] for k in FORCES}, noise_sd, one[0]))
+    # rows of one length (each kind of slide has one), each its own draw, read together
+    many = slipping_levels({k: np.stack([r[0][k] for r in rows]) for k in FORCES},
+                           {k: np.array([r[1][k] for r in rows]) for k in FORCES},
+                           probes._level_rule())
+    assert_allclose(many, [r[2] for r in rows], rtol=1e-12)
+    assert np.unique(many).size == len(rows)
 
 
 def test_a_copy_that_loses_its_grip_reads_nan() -> None:
@@ -72,12 +76,19 @@ def test_a_copy_that_loses_its_grip_reads_nan() -> None:
 
 def test_without_noise_it_reads_as_the_slipping_level() -> None:
     """No sensor noise (the forces before contact steady): nothing to extrapolate, and mu is
-    the slipping level's (there the plain per-blade envelope's) to the last bit."""
+    the slipping level's (there the plain per-blade envelope's), to the last bit where the
+    forces before contact read exactly zero, as a simulated probe's do, and within rounding
+    where a steady force's sd comes out at a rounding error (here 2e-16)."""
     rng = np.random.default_rng(3)
     for run in (synthetic_slip(_stick_slip(rng), _stick_slip(rng)), _bouncing_slip()):
         mu = estimate_mu(run, envelope="per_blade_simex")[0]
-        assert mu == estimate_mu(run, envelope="per_blade_slipping")[0]
+        assert_allclose(mu, estimate_mu(run, envelope="per_blade_slipping")[0], rtol=1e-12)
         assert_allclose(mu, estimate_mu(run, envelope="per_blade")[0], rtol=1e-12)
+        settle = run.traces["phase"] == PHASE_CODE["settle"]
+        for k in FORCES:
+            run.traces[k][settle] = 0.0
+        assert (estimate_mu(run, envelope="per_blade_simex")[0]
+                == estimate_mu(run, envelope="per_blade_slipping")[0])
 
 
 def test_it_is_reproducible_and_leaves_the_callers_noise_draws_alone() -> None:
@@ -110,17 +121,58 @@ def test_the_noise_bias_of_a_near_sticking_slide_is_mostly_extrapolated_away() -
     assert simex.std() < 2 * plain.std()
 
 
-def test_one_added_noise_level_gives_no_extrapolation() -> None:
-    """A line needs the trace's own level and those of at least two added noise levels
-    (copies that lose their grip give none): with one, None, and estimate_mu then reads
-    the plain level."""
+def test_copies_that_lose_their_grip_give_no_extrapolation() -> None:
+    """A line needs the trace's own level and those of at least two added noise levels: a
+    slide gripped on just 6 samples whose copies, with noise as large as the forces, keep
+    5 gripping samples too rarely gives None."""
+    run = synthetic_slip(np.full(6, MU), np.full(6, MU))
+    f, late, noise_sd = _late_slide(run, 0.01, 0)
+    forces = {k: f[k][late] for k in FORCES}
+    loud = {k: 1.0 for k in FORCES}
+    rule = probes._level_rule()
+    assert simex_level(forces, loud, MU, rule, Simex(lambdas=(1.0, 2.0), replicates=1)) is None
+    assert simex_level(forces, noise_sd, MU, rule) is not None
+
+
+def test_estimate_mu_says_when_it_could_not_extrapolate(monkeypatch: pytest.MonkeyPatch
+                                                        ) -> None:
+    """Where the extrapolation gives no level, or one at or below zero, mu is the plain
+    slipping level's, with a warning that says why."""
     run = synthetic_slip(_near_stick(np.random.default_rng(1)),
                          _near_stick(np.random.default_rng(2)))
+    plain = estimate_mu(run, 0.01, np.random.default_rng(4), envelope="per_blade_slipping")[0]
+    for returned, why in ((None, "lost their grip"), (-0.01, "extrapolated to -0.01")):
+        monkeypatch.setattr(probes, "simex_level", lambda *a, r=returned, **k: r)
+        mu, warns, _ = estimate_mu(run, 0.01, np.random.default_rng(4),
+                                   envelope="per_blade_simex")
+        assert mu == plain
+        assert any("not extrapolated" in w and why in w for w in warns), warns
+
+
+@pytest.mark.parametrize("kwargs", [{"lambdas": (1.0,)}, {"lambdas": (1.0, 1.0)},
+                                    {"lambdas": (0.0, 1.0)}, {"lambdas": (-1.0, 1.0)},
+                                    {"lambdas": (1.0, float("nan"))}, {"replicates": 0},
+                                    {"replicates": 2.5}, {"seed": -1}])
+def test_bad_extrapolation_settings_are_refused(kwargs: dict) -> None:
+    with pytest.raises(ValueError, match="Simex"):
+        Simex(**kwargs)
+
+
+def test_bad_traces_are_refused_before_any_copy() -> None:
+    run = synthetic_slip(np.full(N_SLIDE, MU), np.full(N_SLIDE, MU))
     f, late, noise_sd = _late_slide(run, 0.01, 0)
     forces = {k: f[k][late] for k in FORCES}
     rule = probes._level_rule()
-    assert simex_level(forces, noise_sd, MU, rule, Simex(lambdas=(1.0,))) is None
-    assert simex_level(forces, noise_sd, MU, rule, Simex(lambdas=(1.0, 2.0))) is not None
+    with pytest.raises(ValueError, match="noise sds"):
+        simex_level(forces, dict.fromkeys(FORCES, 0.0), MU, rule)
+    with pytest.raises(ValueError, match="noise sds"):
+        simex_level(forces, dict(noise_sd, normal_left=float("nan")), MU, rule)
+    with pytest.raises(ValueError, match="finite 1-D"):
+        simex_level(dict(forces, normal_left=forces["normal_left"][:-1]), noise_sd, MU, rule)
+    bad = forces["normal_left"].copy()
+    bad[3] = np.nan
+    with pytest.raises(ValueError, match="finite 1-D"):
+        simex_level(dict(forces, normal_left=bad), noise_sd, MU, rule)
 
 
 def test_the_precise_probes_read_mu_so() -> None:
