@@ -11,9 +11,9 @@ preset's slip probe with some of those settings changed; the last two are the ``
 preset's, with one slide and with its three (0.3, 0.45 and 0.2 s, ``slip_repeats``) whose
 median is mu.  Each reads mu with the two half-spoons' envelopes (``per_blade``) and, where
 sensor noise is added, also less what the noise adds (``per_blade_denoised``) and refined to
-the level the ratio slips at (``per_blade_slipping``).  The ``precise`` preset reads that
-level with the bias noise leaves in it extrapolated away (``per_blade_simex``,
-``fetch_env.slip_simex``), which the validation harness's runs with noise measure.
+the level the ratio slips at (``per_blade_slipping``), and that level less the bias the
+noise leaves in it, extrapolated away (``per_blade_simex``, ``fetch_env.slip_simex``: the
+``precise`` preset's).
 
     python benchmarks/slip_probe.py --n 512 --workers 2
 
@@ -63,12 +63,14 @@ NOISE = 0.01
 # each food's readings of mu: the key of its error and the table's label
 READINGS = {"noise0": "no noise", "noise_per_blade": "1 % noise",
             "noise_denoised": "1 % noise, denoised",
-            "noise_slipping": "1 % noise, slipping level"}
+            "noise_slipping": "1 % noise, slipping level",
+            "noise_simex": "1 % noise, slipping level less its noise bias"}
 
 
 def food_errors(food: Food, config: ProbeConfig) -> dict[str, Any]:
     """mu's relative error on ``food`` (a record naming it by index): without noise, and
-    with ``NOISE`` read per blade, per blade less the noise and at the slipping level (noise
+    with ``NOISE`` read per blade, per blade less the noise, at the slipping level and at
+    that level less its noise bias (noise
     drawn from the food's index, slide after slide), the median over ``config``'s slides;
     NaN where a slide gave no estimate."""
     warnings.simplefilter("ignore", ParameterClippedWarning)
@@ -78,7 +80,8 @@ def food_errors(food: Food, config: ProbeConfig) -> dict[str, Any]:
     for key, noise, envelope in (("noise0", 0.0, "per_blade"),
                                  ("noise_per_blade", NOISE, "per_blade"),
                                  ("noise_denoised", NOISE, "per_blade_denoised"),
-                                 ("noise_slipping", NOISE, "per_blade_slipping")):
+                                 ("noise_slipping", NOISE, "per_blade_slipping"),
+                                 ("noise_simex", NOISE, "per_blade_simex")):
         rng = np.random.default_rng(food.index)
         try:
             mus = [estimate_mu(run, noise, rng, envelope=envelope)[0] for run in runs]

@@ -212,7 +212,9 @@ ENVELOPE_QUANTILE = 0.99
 # 0.3 % noise 0.40 / 1.0 / 1.3 / 2.7 % went to 0.24 / 0.8 / 1.0 / 5.3 % (the 5.3 % a
 # slippery cube whose noise-free reading is itself 1-6 % high: the extrapolation recovers
 # the noise-free reading, not mu), with 3 % from 1.6 / 7.0 / 8.3 / 11.6 % (21 foods past
-# 5 %) to 1.1 / 3.9 / 5.2 / 9.4 % (7 past 5 %).
+# 5 %) to 1.1 / 3.9 / 5.2 / 9.4 % (7 past 5 %).  With benchmarks/slip_probe.py's noise
+# draws (512 tuning foods, 1 %): 0.87 / 2.7 / 3.1 / 6 %, mean -1.11 %, 154 foods past 1.4 %
+# went to 0.44 / 1.5 / 2.0 / 4 %, -0.22 %, 55.
 SlipEnvelope = Literal["sum", "per_blade", "per_blade_denoised", "per_blade_slipping",
                        "per_blade_simex"]
 SLIP_ENVELOPES: tuple[SlipEnvelope, ...] = ("sum", "per_blade", "per_blade_denoised",

@@ -380,7 +380,8 @@ def slip_probe_section() -> str:
     r = data["results"]
     names = list(r)
     base, one, best = (r[names[k]]["noise0"] for k in (0, -2, -1))
-    noisy = {key: r[names[-1]][key] for key in ("noise_denoised", "noise_slipping")}
+    noisy = {key: r[names[-1]][key]
+             for key in ("noise_denoised", "noise_slipping", "noise_simex")}
     return ("## The precise slip probe: blades that lean less\n\n"
             "The blades close by turning about the hinge, so at the slip probe's clamp angle "
             "their faces lean in by that angle while a cube's sides stand upright.  A blade "
@@ -414,11 +415,12 @@ def slip_probe_section() -> str:
             "three slides "
             f"{_mpm(noisy['noise_denoised'])} and {_mpm(noisy['noise_slipping'])} "
             "(median / 90th / 95th percentile; without noise both read as `per_blade`).  "
-            "The `precise` preset reads that level less the bias the noise leaves in it "
-            "(sticking samples just below mu that the noise lifts into the slipping window), "
-            "measured on the trace by simulation-extrapolation (`per_blade_simex`, "
-            "`fetch_env.slip_simex`); it is not among this benchmark's readings, and its "
-            "effect is in the runs with 1 % noise above (`tests/test_slip_simex.py`).  "
+            "That level still reads mu low under noise (sticking samples just below mu that "
+            "the noise lifts into the slipping window), so the `precise` preset reads it "
+            "less that bias, measured on the trace by simulation-extrapolation (copies of "
+            "the slide with more noise of the sensor's own kind, their levels extrapolated "
+            "back to none; `per_blade_simex`, `fetch_env.slip_simex`): "
+            f"{_mpm(noisy['noise_simex'])}.  "
             f"Command: `{data['meta']['command'].strip()}`.\n\n"
             + slip_table(r) + "\n\n"
             "Tests: `tests/test_slip_envelope.py` (on 64 foods of a check design the precise "
