@@ -2,9 +2,12 @@
 
 A real robot's log (CSV) or ``simulate --json`` output (schema: ``docs/traces_format.md``) is
 read by :func:`estimators.load_traces` and estimated by :func:`estimate_recorded`, which calls
-the estimators exactly as the simulated probes of ``food-fetch estimate`` do (the full fit with
-the same clamp weight, or the three-step method; :func:`estimators.estimate_friction`), so
-switching to better estimators is one edit there.  The report and ``--json`` have the simulated
+the estimators as the study's probes of ``food-fetch estimate --probes study`` do (the full fit
+with the same clamp weight, or the three-step method; :func:`estimators.estimate_friction`),
+so switching to better estimators is one edit there.  The default ``precise`` probes' readings
+(seven clamps' medians, the calibration fitted for their clamp, mu per half-spoon at the
+slipping level less its noise bias) belong to their own simulated clamps and are not applied
+to a recorded run.  The report and ``--json`` have the simulated
 path's shape, with every true value unknown ('-' / null).
 
 The simulation's options (food, clamp, noise, seed, ...) are refused with ``--traces``: a
@@ -115,7 +118,7 @@ def estimate_recorded(
     traces: RecordedTraces, *, method: str = "full", probe: str = "both",
     contact_angle: float | None = None
 ) -> RecordedEstimates:
-    """Run the estimators on recorded traces as the simulated probes run them (the full fit
+    """Run the estimators on recorded traces as the study's simulated probes run them (the full fit
     with the simulator's clamp weight, or the three-step method; the friction estimator): the
     one place that picks them.  An estimator's failure is kept in ``failures``, not raised.
     ``contact_angle`` [rad], where known, is the full fit's first-contact angle.
