@@ -111,7 +111,7 @@ from fetch_env.errors import (
 from fetch_env.layouts import Piece
 from fetch_env.parallel import Task, outcome, run_ahead
 from fetch_env.scene import Geometry, Scene, initial_state
-from fetch_env.slip_simex import LevelRule, Simex, simex_level
+from fetch_env.slip_simex import LevelRule, Simex, simex_level, slipping_shift
 from fetch_env.spaces import VISCO_NAMES
 
 PARAM_NAMES: tuple[str, ...] = ("K1", "K2", "B", "mu", "g1", "tau1")
@@ -941,8 +941,7 @@ def _slipping_level(ratio: np.ndarray, start: float, sd: float) -> float:
     normal's mean (``sd phi(c) / Phi(c)``); where fewer than 3 samples are that high, the
     level so far (see :data:`SLIP_ENVELOPES`)."""
     c = SLIPPING_TAIL
-    shift = sd * math.exp(-0.5 * c * c) / math.sqrt(2 * math.pi) / (
-        0.5 * (1.0 + math.erf(c / math.sqrt(2.0))))
+    shift = float(slipping_shift(sd, c))
     level = start
     for _ in range(SLIPPING_ITERATIONS):
         top = ratio[ratio > level - c * sd]

@@ -77,6 +77,14 @@ def _pressed_samples(forces: dict[str, np.ndarray], rule: LevelRule) -> tuple[np
     return np.where((firm.sum(axis=1) >= 5)[:, None], firm, both), enough
 
 
+def slipping_shift(sd: float | np.ndarray, tail: float) -> float | np.ndarray:
+    """How far the mean of normal samples of sd ``sd`` above their mean less ``tail`` sds
+    sits above that mean, ``sd phi(tail) / Phi(tail)``: what the slipping level takes off
+    the mean of the samples it reads (one trace's or, elementwise, many copies')."""
+    return sd * math.exp(-0.5 * tail * tail) / math.sqrt(2 * math.pi) / (
+        0.5 * (1.0 + math.erf(tail / math.sqrt(2.0))))
+
+
 def _rowwise_quantile(x: np.ndarray, q: float) -> np.ndarray:
     """Each row's ``q`` quantile of its finite entries (NaN elsewhere), interpolated
     linearly as :func:`numpy.quantile` does; NaN for a row with none (faster than
@@ -101,8 +109,7 @@ def _face_levels(n: np.ndarray, t: np.ndarray, read: np.ndarray, sd_n: np.ndarra
     envelope = _rowwise_quantile(ratio, rule.quantile)
     sd = _rowwise_quantile(np.where(read, sd_ratio, np.nan), 0.5)
     c = rule.tail
-    shift = sd * math.exp(-0.5 * c * c) / math.sqrt(2 * math.pi) / (
-        0.5 * (1.0 + math.erf(c / math.sqrt(2.0))))
+    shift = slipping_shift(sd, c)
     level = envelope - rule.noise_z * sd
     active = sd > 0
     for _ in range(rule.iterations):

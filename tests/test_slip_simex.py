@@ -14,7 +14,7 @@ from numpy.testing import assert_allclose
 
 from fetch_env import probes
 from fetch_env.controller import PHASE_CODE, SimResult
-from fetch_env.probes import PROBE_PRESETS, estimate_mu
+from fetch_env.probes import estimate_mu
 from fetch_env.slip_simex import FORCES, Simex, simex_level, slipping_levels
 from tests.test_slip_envelope import MU, N_SLIDE, _bouncing_slip, _stick_slip, synthetic_slip
 
@@ -173,10 +173,6 @@ def test_bad_traces_are_refused_before_any_copy() -> None:
     bad[3] = np.nan
     with pytest.raises(ValueError, match="finite 1-D"):
         simex_level(dict(forces, normal_left=bad), noise_sd, MU, rule)
-
-
-def test_the_precise_probes_read_mu_so() -> None:
-    assert PROBE_PRESETS["precise"].slip_envelope == "per_blade_simex"
 
 
 def test_on_the_tuning_foods_with_noise_mu_is_no_longer_read_low() -> None:
