@@ -7,13 +7,14 @@ into the side, and the normals of its contacts (the side's) lean from the blade'
 the clamp angle: in the blade's frame their push reads as friction, ``mu + angle (1 +
 mu^2)``.  A blade that starts closer to the food (``ProbeConfig.slip_gap``) and squeezes it
 less (``slip_strain``) closes by a smaller angle.  Each variant here is the ``measure``
-preset's slip probe with some of those settings changed; the last two are the ``precise``
-preset's, with one slide and with its three (0.3, 0.45 and 0.2 s, ``slip_repeats``) whose
-median is mu.  Each reads mu with the two half-spoons' envelopes (``per_blade``) and, where
-sensor noise is added, also less what the noise adds (``per_blade_denoised``) and refined to
-the level the ratio slips at (``per_blade_slipping``), and that level less the bias the
-noise leaves in it, extrapolated away (``per_blade_simex``, ``fetch_env.slip_simex``: the
-``precise`` preset's).
+preset's slip probe with some of those settings changed; the last three are the
+``precise`` preset's, with one slide, with three (0.3, 0.45 and 0.2 s) and with its five
+(and 0.675 and 0.133 s, ``slip_repeats``), whose median is mu.  Each reads mu with the two
+half-spoons' envelopes (``per_blade``) and, where sensor noise is added, also less what
+the noise adds (``per_blade_denoised``) and refined to the level the ratio slips at
+(``per_blade_slipping``), and that level less the bias the noise leaves in it,
+extrapolated away (``per_blade_simex``, ``fetch_env.slip_simex``: the ``precise``
+preset's).
 
     python benchmarks/slip_probe.py --n 512 --workers 2
 
@@ -57,7 +58,9 @@ VARIANTS: dict[str, ProbeConfig] = {
     "gap 0.1 mm, squeeze 0.03, 5 ms": dataclasses.replace(
         MEASURE, slip_gap=GAP, slip_strain=0.03, slip_timestep=0.005),
     "gap 0.1 mm, squeeze 0.03, 2.5 ms": dataclasses.replace(PRECISE, slip_repeats=1),
-    "precise (gap 0.1 mm, squeeze 0.03, 2.5 ms, median of 3 slides)": PRECISE,
+    "gap 0.1 mm, squeeze 0.03, 2.5 ms, median of 3 slides": dataclasses.replace(
+        PRECISE, slip_repeats=3),
+    "precise (gap 0.1 mm, squeeze 0.03, 2.5 ms, median of 5 slides)": PRECISE,
 }
 NOISE = 0.01
 # each food's readings of mu: the key of its error and the table's label

@@ -1586,8 +1586,9 @@ PROBE_PRESETS: dict[str, ProbeConfig] = {
     # forces read mu at 1.8 / 6.0 / 8.6 % (the measure slip 2.3 / 4.5 / 6.3 %).
     #
     # Which foods a single slide misses is chaotic (a slide of another speed misses others),
-    # so the probe slides three times, over 0.3, 0.45 and 0.2 s, and takes the median
-    # (ProbeConfig.slip_repeats): on the 512 tuning foods, uncalibrated, mu's |error| went
+    # so the probe slides several times (five, below; first three, over 0.3, 0.45 and 0.2 s)
+    # and takes the median (ProbeConfig.slip_repeats): on the 512 tuning foods, uncalibrated,
+    # with three slides mu's |error| went
     # from 0.03 / 0.7 / 1.3 % (one slide) to 0.04 / 0.6 / 1.0 %, foods past 1.4 % from 19
     # to 14, the worst from 15 to 3.4 %; with 1 % noise from 1.80 / 6.0 / 8.6 % to 1.50 /
     # 4.5 / 5.6 % (benchmarks/slip_probe.py).  The slides' spread (diagnostic mu_trials, an
@@ -1605,11 +1606,26 @@ PROBE_PRESETS: dict[str, ProbeConfig] = {
     # noise lifts into the slipping window), so the preset reads it less that bias,
     # extrapolated away ("per_blade_simex", fetch_env.slip_simex): 0.40 / 1.5 / 1.8 / 3.1 %,
     # mean -0.17 %, on the same slides with one noise draw each.
+    #
+    # Five slides rather than three (the next two of slide_times: 0.675 and 0.133 s, about
+    # 0.3 s more of probes a food): under noise the median averages more of it away, and
+    # the slides' spread then tells the foods the noise pushed far from those it did not.
+    # On the 512 tuning foods' slides, three 1 % noise draws each (1536 readings,
+    # uncalibrated; median / 90th / 95th percentile / max of |mu error|): three slides
+    # 0.47 / 1.5 / 2.0 / 6.9 %, 21 readings past 3 %; five 0.40 / 1.3 / 1.7 / 5.3 %, 10.
+    # To flag every reading past 3 % by the slides' spread (half their log-range) alone, three
+    # slides need a limit of 0.0033, which flags 1168 of the 1462 readings within 2 %; five
+    # 0.036, which flags 92 of 1484.  Without noise (the harness's tuning run) 0.04 / 0.58 /
+    # 1.03 / 3.4 %, 14 foods past 1.4 %, went to 0.04 / 0.63 / 1.00 / 3.4 %, 12.  Seven
+    # slides did little better (with noise 0.36 / 1.3 / 1.6 / 4.4 %, 7 past 3 %, but their
+    # spread flags 115 to flag those), and the longest read a few foods low without noise
+    # (the 0.675 and 1.01 s slides alone 2.6 and 3.3 % at the 95th percentile, the 0.3 s
+    # one 1.3 %).
     "precise": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade_simex",
                            relaxation_repeats=7, contact_angle="camera",
                            relaxation_timestep=0.001, relaxation_impratio=1e4,
                            relaxation_contact_ratio=2.25, slip_gap=RELAXATION_GAP,
-                           slip_strain=0.03, slip_timestep=0.0025, slip_repeats=3),
+                           slip_strain=0.03, slip_timestep=0.0025, slip_repeats=5),
 }
 
 # Calibrations of the presets' systematic errors, fitted on the validation harness's tuning

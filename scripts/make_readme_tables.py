@@ -186,13 +186,20 @@ def speed_table(data: dict[str, Any]) -> str:
 
 def estimate_cost_row(data: dict[str, Any]) -> str:
     """One food's estimate, its simulations (one timing each) and its fits (each food's
-    median of ``repeats``) on the first noise level, from ``benchmarks/bench_fits.py``."""
-    sims = data["simulations_cpu_s"]
-    fits = next(iter(data["fits"].values()))
+    median of ``repeats``) at each noise level, with the foods past the bars, from
+    ``benchmarks/bench_fits.py``."""
+    sims, bars = data["simulations_cpu_s"], data["bars_s"]
+    fits = data["fits"]
+    noise = " / ".join(f"{100 * float(n):g} %" if float(n) else "no" for n in fits)
+
+    def each(key: str, scale: float = 1e3) -> str:
+        return " / ".join(f"{scale * f[key]:.0f}" for f in fits.values())
+
     return (f"| [one food's estimate](docs/data/bench_fits.json), {len(sims)} foods | "
-            f"simulations median {statistics.median(sims):.1f} s, max "
-            f"{max(sims):.1f} s; fits median {1e3 * fits['median']:.0f} ms, max "
-            f"{1e3 * fits['max']:.0f} ms |")
+            f"simulations median {statistics.median(sims):.1f} s, max {max(sims):.1f} s "
+            f"({sum(s > bars['probes'] for s in sims)} over {bars['probes']:g} s); fits, "
+            f"{noise} noise: median {each('median')} ms, max {each('max')} ms "
+            f"({each('over_bar', 1)} over {1e3 * bars['fits']:g} ms) |")
 
 
 def soak_table(data: dict[str, Any]) -> str:

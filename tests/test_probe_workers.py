@@ -40,7 +40,7 @@ from fetch_env.parallel import (
 from fetch_env.probes import PROBE_CALIBRATIONS, PROBE_PRESETS, run_probes, simulate_probes
 from tests.cli_helpers import assert_one_line_error, run_cli
 
-# a small stiff ellipsoid: seven clamps and three slides of the repeated probes in ~1 s
+# a small stiff ellipsoid: the seven clamps of the repeated probes in ~1 s
 PIECES = single_block("ellipsoid", 0.012, Material(young=8e5, g1=0.35, tau1=1.2, mu=0.4))
 
 

@@ -94,26 +94,29 @@ def test_the_probe_reads_the_median_of_its_slides() -> None:
 
 
 @pytest.mark.filterwarnings("ignore::fetch_env.errors.ParameterClippedWarning")
-def test_the_median_of_three_slides_misses_on_fewer_foods() -> None:
+def test_the_median_of_five_slides_misses_on_fewer_foods() -> None:
     """On 64 foods of the whole space (seed 3000, never tuned on), the precise probe's median
-    of three slides (0.3, 0.45 and 0.2 s) misses mu by more than 1.4 % on at most 4 foods,
-    fewer than its first slide alone, with a 95th percentile of at most 1.4 %; where the
-    three slides agree within 0.1 % (half the log-range), none misses by more than 1 %.
-    Measured: 3 foods against 6, 95th percentile 1.25 % against 1.91 %, worst 2.5 %; the 36
-    foods whose slides agree within 0.1 % are all within 0.45 %."""
+    of five slides (0.3, 0.45, 0.2, 0.675 and 0.133 s) misses mu by more than 1.4 % on at
+    most 3 foods, fewer than its first slide alone and no more than the median of the first
+    three, with a 95th percentile of at most 1.3 %; where the five slides agree within 0.1 %
+    (half the log-range), none misses by more than 1 %.  Measured: 2 foods against 6 (3 for
+    three slides), 95th percentile 1.11 % against 1.91 % (1.25 %), worst 2.5 %; the 25 foods
+    whose slides agree within 0.1 % are all within 0.43 %."""
     config = PROBE_PRESETS["precise"]
-    assert config.slip_repeats == 3
-    errors, single, spread = [], [], []
+    assert config.slip_repeats == 5
+    errors, three, single, spread = [], [], [], []
     for food in sample_foods(64, CHECK_SEED):
         mus = [estimate_mu(slip_run(food.piece(), dataclasses.replace(config, slide_time=t)),
                            envelope=config.slip_envelope)[0] for t in slide_times(config)]
         errors.append(abs(np.median(mus) / food.mu - 1))
+        three.append(abs(np.median(mus[:3]) / food.mu - 1))
         single.append(abs(mus[0] / food.mu - 1))
         spread.append(0.5 * math.log(max(mus) / min(mus)))
     errors_a, single_a, spread_a = np.array(errors), np.array(single), np.array(spread)
-    assert np.sum(errors_a > 0.014) <= 4
+    assert np.sum(errors_a > 0.014) <= 3
     assert np.sum(errors_a > 0.014) < np.sum(single_a > 0.014)
-    assert np.percentile(errors_a, 95) <= 0.014
+    assert np.sum(errors_a > 0.014) <= np.sum(np.array(three) > 0.014)
+    assert np.percentile(errors_a, 95) <= 0.013
     assert np.all(errors_a[spread_a < 0.001] <= 0.01)
 
 

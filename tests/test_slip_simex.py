@@ -176,11 +176,12 @@ def test_bad_traces_are_refused_before_any_copy() -> None:
 
 
 def test_on_the_tuning_foods_with_noise_mu_is_no_longer_read_low() -> None:
-    """The committed run of the precise probes on 256 tuning foods with 1 % noise
+    """The committed run of the precise probes on 512 tuning foods with 1 % noise
     (uncalibrated; mu has no calibration): mu's mean error within 0.5 % (the slipping level
-    read it -1.1 % low) and its 95th percentile under 2.5 % (3.1 % before)."""
+    read it -1.1 % low on the first 256) and its 95th percentile under 2.2 % (3.1 % before;
+    measured -0.22 % and 1.72 %, five slides a food)."""
     records = json.loads((DATA / "tuning_precise_uncal_noise0.01.json").read_text())["records"]
     err = np.array([r["error"]["mu"] for r in records if "crash" not in r])
-    assert err.size == 256
+    assert err.size == 512
     assert abs(err.mean()) < 0.005
-    assert np.quantile(np.abs(err), 0.95) < 0.025
+    assert np.quantile(np.abs(err), 0.95) < 0.022
