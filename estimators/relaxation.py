@@ -361,9 +361,16 @@ def _exp_model(s: NDArray[np.float64], m_inf: float, a: float, lam: float):
     return m_inf + a * np.exp(-lam * s)
 
 
-def _exp_jac(s: NDArray[np.float64], m_inf: float, a: float, lam: float):
+def _exp_jac(s: NDArray[np.float64], m_inf: float, a: float, lam: float, columns: int = 3):
+    """eq. 6's Jacobian in its three parameters, in an (n, ``columns``) array whose columns
+    past the third the caller fills (the hot loop of every decay fit: one array, no
+    stacking)."""
     e = np.exp(-lam * s)
-    return np.column_stack((np.ones_like(s), e, -a * s * e))
+    jac = np.empty((s.size, columns))
+    jac[:, 0] = 1.0
+    jac[:, 1] = e
+    jac[:, 2] = -a * s * e
+    return jac
 
 
 def _exp_drift_model(s: NDArray[np.float64], m_inf: float, a: float, lam: float, c: float):
@@ -371,7 +378,9 @@ def _exp_drift_model(s: NDArray[np.float64], m_inf: float, a: float, lam: float,
 
 
 def _exp_drift_jac(s: NDArray[np.float64], m_inf: float, a: float, lam: float, c: float):
-    return np.column_stack((_exp_jac(s, m_inf, a, lam), s))
+    jac = _exp_jac(s, m_inf, a, lam, columns=4)
+    jac[:, 3] = s
+    return jac
 
 
 def _trf(tol: float) -> dict[str, Any]:
@@ -485,8 +494,11 @@ def _projection(s: NDArray[np.float64], y: NDArray[np.float64], rate: float, lin
                 ) -> tuple[float, NDArray[np.float64]]:
     """The residual sum of squares of the best ``M_inf + A exp(-rate s)`` (``+ c s`` where
     ``line``) at ``rate``, and that ``(M_inf, A)`` (``, c``)."""
-    columns = [np.ones_like(s), np.exp(-rate * s)] + ([s] if line else [])
-    basis = np.column_stack(columns)
+    basis = np.empty((s.size, 3 if line else 2))
+    basis[:, 0] = 1.0
+    basis[:, 1] = np.exp(-rate * s)
+    if line:
+        basis[:, 2] = s
     beta, *_ = np.linalg.lstsq(basis, y, rcond=None)
     r = y - basis @ beta
     return float(r @ r), beta

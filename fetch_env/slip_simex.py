@@ -197,16 +197,9 @@ def simex_level(forces: dict[str, np.ndarray], noise_sd: dict[str, float], level
     if not (all(math.isfinite(v) and v >= 0 for v in sds) and max(sds) > 0):
         raise ValueError(f"simex_level needs finite, non-negative noise sds with one positive, "
                          f"got {dict(zip(FORCES, sds, strict=True))}")
-    rng = np.random.default_rng(simex.seed)
-    m = next(iter(forces.values())).size
+    levels = _copies_levels(forces, noise_sd, rule, simex)
     sds, means = [1.0], [level]
-    for lam in simex.lambdas:
-        copies = {k: forces[k][None, :] + rng.normal(0.0, math.sqrt(lam) * noise_sd[k],
-                                                     (simex.replicates, m))
-                  for k in FORCES}
-        sd = {k: np.full(simex.replicates, math.sqrt(1.0 + lam) * noise_sd[k])
-              for k in FORCES}
-        read = slipping_levels(copies, sd, rule)
+    for lam, read in zip(simex.lambdas, levels, strict=True):
         read = read[np.isfinite(read)]
         if read.size:
             sds.append(math.sqrt(1.0 + lam))
@@ -214,3 +207,21 @@ def simex_level(forces: dict[str, np.ndarray], noise_sd: dict[str, float], level
     if len(sds) < 3:
         return None
     return float(np.polyfit(sds, means, 1)[1])  # the line's value at zero noise
+
+
+def _copies_levels(forces: dict[str, np.ndarray], noise_sd: dict[str, float], rule: LevelRule,
+                   simex: Simex) -> np.ndarray:
+    """The slipping levels of ``simex.replicates`` noisy copies of the trace at each of
+    ``simex.lambdas``, (lambdas, replicates): every copy read in one
+    :func:`slipping_levels` call (its rows are read apart, so batching changes no level),
+    its noise drawn as one block in the order a draw per lambda and force would take it."""
+    n_lam, reps = len(simex.lambdas), simex.replicates
+    m = next(iter(forces.values())).size
+    draws = np.random.default_rng(simex.seed).standard_normal((n_lam, len(FORCES), reps, m))
+    scale = np.sqrt(np.asarray(simex.lambdas, dtype=float))
+    copies, sd = {}, {}
+    for j, k in enumerate(FORCES):
+        added = draws[:, j] * (scale * noise_sd[k])[:, None, None]
+        copies[k] = (forces[k][None, None, :] + added).reshape(n_lam * reps, m)
+        sd[k] = np.repeat(np.sqrt(1.0 + np.asarray(simex.lambdas)) * noise_sd[k], reps)
+    return slipping_levels(copies, sd, rule).reshape(n_lam, reps)

@@ -128,3 +128,22 @@ def test_no_plateau_raises() -> None:
 def test_bad_inputs_raise(mutate, match: str) -> None:
     with pytest.raises(EstimationError, match=match):
         estimate_friction(*mutate(list(make_slide(0.2))))
+
+
+@pytest.mark.parametrize("share_nan", [0.0, 0.3, 0.9, 1.0])
+def test_the_running_median_is_numpys_nanmedian(share_nan: float) -> None:
+    """The spike filter's running median is numpy's nanmedian of each centred window, bit
+    for bit, with NaN gaps (odd and even counts of numbers in a window) and empty windows."""
+    import warnings
+
+    from estimators.friction import _running_median
+
+    rng = np.random.default_rng(int(10 * share_nan))
+    for n in (1, 2, 5, 7, 300):
+        x = rng.normal(0.4, 0.05, n)
+        x[rng.random(n) < share_nan] = np.nan
+        pad = np.concatenate((np.full(2, np.nan), x, np.full(2, np.nan)))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN window
+            want = np.nanmedian(np.lib.stride_tricks.sliding_window_view(pad, 5), axis=1)
+        np.testing.assert_array_equal(_running_median(x, 5), want)

@@ -91,6 +91,38 @@ def test_without_noise_it_reads_as_the_slipping_level() -> None:
                 == estimate_mu(run, envelope="per_blade_slipping")[0])
 
 
+def _simex_one_lambda_at_a_time(forces: dict[str, np.ndarray], noise_sd: dict[str, float],
+                                level: float, simex: Simex) -> float | None:
+    """The extrapolation as written out: each lambda's copies drawn force by force and
+    read apart, then the line through the mean levels."""
+    rng = np.random.default_rng(simex.seed)
+    m = forces["normal_left"].size
+    sds, means = [1.0], [level]
+    for lam in simex.lambdas:
+        copies = {k: forces[k][None, :] + rng.normal(0.0, np.sqrt(lam) * noise_sd[k],
+                                                     (simex.replicates, m)) for k in FORCES}
+        sd = {k: np.full(simex.replicates, np.sqrt(1.0 + lam) * noise_sd[k]) for k in FORCES}
+        read = slipping_levels(copies, sd, probes._level_rule())
+        read = read[np.isfinite(read)]
+        if read.size:
+            sds.append(float(np.sqrt(1.0 + lam)))
+            means.append(float(read.mean()))
+    return None if len(sds) < 3 else float(np.polyfit(sds, means, 1)[1])
+
+
+@pytest.mark.parametrize("simex", [Simex(), Simex(lambdas=(0.25, 3.0), replicates=3, seed=7)])
+def test_reading_every_copy_at_once_is_reading_them_lambda_by_lambda(simex: Simex) -> None:
+    """simex_level draws all its copies as one block and reads them in one call; its level is
+    the one-lambda-at-a-time reading's bit for bit (the same draws, rows read apart)."""
+    for seed in range(12):
+        rng = np.random.default_rng(seed)
+        run = synthetic_slip(_near_stick(rng), _near_stick(rng, low=0.9))
+        f, late, noise_sd = _late_slide(run, 0.01, seed)
+        forces = {k: f[k][late] for k in FORCES}
+        assert (simex_level(forces, noise_sd, MU, probes._level_rule(), simex)
+                == _simex_one_lambda_at_a_time(forces, noise_sd, MU, simex))
+
+
 def test_it_is_reproducible_and_leaves_the_callers_noise_draws_alone() -> None:
     """The copies' noise comes from a generator of its own: the same trace gives the same mu,
     and the caller's generator is left where the plain slipping level leaves it."""
