@@ -18,6 +18,7 @@ from fetch_env import probes
 from fetch_env.controller import SimResult
 from fetch_env.errors import InvalidParameterError, SimulationDivergedError
 from fetch_env.food_space import REPORTING_SEED, TUNING_SEED, sample_foods
+from fetch_env.layouts import Piece
 from fetch_env.probes import (
     CONTACT_ANGLES,
     PROBE_PRESETS,
@@ -135,6 +136,19 @@ def test_a_stalled_twin_defines_the_stiffness_at_the_angle_it_was_held_at() -> N
     assert abs(k_el / truth["K_el"] - 1) < 0.15, (k_el, truth)
 
 
+def _refused_at_the_centre(index: int, fault: str, monkeypatch: pytest.MonkeyPatch
+                           ) -> tuple[Piece, dict[str, float]]:
+    """Reporting food ``index``'s twin: refused for ``fault`` at the plate's centre, then
+    held with the default placements (its elastic_stiffness)."""
+    piece = sample_foods(256, REPORTING_SEED)[index].piece()
+    config = PROBE_PRESETS["precise"]
+    monkeypatch.setattr(probes, "TWIN_SHIFTS", (0.0,))
+    with pytest.raises(SimulationDivergedError, match=fault):
+        elastic_stiffness(piece, config)
+    monkeypatch.undo()
+    return piece, elastic_stiffness(piece, config)
+
+
 def test_a_twin_that_passes_through_is_clamped_again_a_micrometre_along_the_blade(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """Reporting food 154 (a 20 mm, 0.23 MPa cube): its elastic twin, clamped at the plate's
@@ -142,13 +156,7 @@ def test_a_twin_that_passes_through_is_clamped_again_a_micrometre_along_the_blad
     (held moment 163 N m, log strain 11.5: a "true" K_el 1000 times its 2 E A / l).  Moved
     1 um along the blade, it is held at 0.196 N m, and its K_el is within the ratio to
     2 E A / l of every tuning food (0.25-1.42)."""
-    piece = sample_foods(256, REPORTING_SEED)[154].piece()
-    config = PROBE_PRESETS["precise"]
-    monkeypatch.setattr(probes, "TWIN_SHIFTS", (0.0,))
-    with pytest.raises(SimulationDivergedError, match="passed through"):
-        elastic_stiffness(piece, config)
-    monkeypatch.undo()
-    got = elastic_stiffness(piece, config)
+    piece, got = _refused_at_the_centre(154, "passed through", monkeypatch)
     nominal = 2.0 * piece.material.young * piece.size
     assert 0.25 <= got["K_el"] / nominal <= 1.5, got
     assert got["M_el"] < 1.0, got
@@ -163,12 +171,6 @@ def test_a_twin_that_rattles_between_the_blades_is_clamped_again_along_the_blade
     and the twin, clamped 1 um along the blade, is held: its K_el is within 5 % of the
     probes' estimate (committed in the reporting run) and its held moment within 5 % of
     the food's own peak moment (0.0333 N m)."""
-    piece = sample_foods(256, REPORTING_SEED)[179].piece()
-    config = PROBE_PRESETS["precise"]
-    monkeypatch.setattr(probes, "TWIN_SHIFTS", (0.0,))
-    with pytest.raises(SimulationDivergedError, match="rattles between the blades"):
-        elastic_stiffness(piece, config)
-    monkeypatch.undo()
-    got = elastic_stiffness(piece, config)
+    _, got = _refused_at_the_centre(179, "rattles between the blades", monkeypatch)
     assert got["K_el"] == pytest.approx(4011.0, rel=0.05), got
     assert got["M_el"] == pytest.approx(0.0333, rel=0.05), got
