@@ -156,7 +156,7 @@ def run_episode(task: Task) -> dict[str, Any]:
         "lift_speed": float(applied.get("lift_speed", math.nan)),
         "n_pieces": len(pieces),
         "young": float(material.get("young", math.nan)),
-        "true_K1": float(reset_info.get("true_params", {}).get("K1", math.nan)),
+        "true_K1": float(reset_info.get("true_params", {}).get("K1") or math.nan),
         "diverged": "error" in info, "wall_s": wall,
     }
     if task.record:  # the data of a Minari episode, written by the parent in seed order
