@@ -7,11 +7,13 @@ calibrated (``probes="measure"``, ``probes="repeated"``; where a preset has a ca
 fitted on the layout's own scenes, which the env applies, also with the food-space one), and
 reports, per parameter, the
 median, 95th percentile and max of |model / oracle - 1| (g1, tau1 and mu: the material's,
-exact; K1, K2, B: the oracle's nominal ``2 E A / l``, so only their scatter means much), the
-probes' median wall time per reset and the reset's median CPU time (this process's, so the
-machine's load does not enter).  Writes JSON and a markdown table.  The scenes are the
-"study" space's (the -v0 ids'); ``--scenes`` draws another space's
-(``fetch_env.env_scenes.SCENE_SPACES``) and names the files after it.
+exact; K1, K2, B: the oracle's nominal ``2 E A / l``, so only their scatter means much, and
+against the probed piece's elastic twin under the variant's probe, ``errors_twin``: the
+truth the estimators are validated against, the env's ``true_stiffness="elastic_twin"``,
+computed outside the timed reset), the probes' median wall time per reset and the reset's
+median CPU time (this process's, so the machine's load does not enter).  Writes JSON and a
+markdown table.  The scenes are the "study" space's (the -v0 ids'); ``--scenes`` draws
+another space's (``fetch_env.env_scenes.SCENE_SPACES``) and names the files after it.
 
     python benchmarks/bench_env_estimates.py --workers 2 --out docs/data/validation
     python benchmarks/bench_env_estimates.py --layouts row --scenes any_shape --workers 2
@@ -20,6 +22,7 @@ machine's load does not enter).  Writes JSON and a markdown table.  The scenes a
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
@@ -36,7 +39,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from agents.atomic import write_atomic
 from fetch_env.env import FoodFetchEnv
 from fetch_env.env_scenes import SCENE_SPACES
-from fetch_env.probes import PARAM_NAMES, PROBE_CALIBRATIONS, calibration_for
+from fetch_env.errors import SimulationDivergedError
+from fetch_env.probes import (
+    PARAM_NAMES,
+    PROBE_CALIBRATIONS,
+    calibration_for,
+    true_parameters_exact,
+)
+
+STIFFNESS = ("K1", "K2", "B")
 
 LAYOUTS = {"block": 64, "row": 32, "two_rows": 32, "diced": 32}
 FIRST_SEED = 90_000
@@ -62,6 +73,7 @@ def run(layout: str, probes: str, calibrated: bool, seeds: list[int],
     label = ("no" if cal is None else "food space" if cal is PROBE_CALIBRATIONS.get(probes)
              else f"{layout} scenes")
     errs: dict[str, list[float]] = {k: [] for k in PARAM_NAMES}
+    errs_twin: dict[str, list[float]] = {k: [] for k in STIFFNESS}
     walls, cpus = [], []
     for seed in seeds:
         cpu = time.process_time()
@@ -71,10 +83,26 @@ def run(layout: str, probes: str, calibrated: bool, seeds: list[int],
         for k in PARAM_NAMES:
             est = info["estimated_params"][k]
             errs[k].append(float("nan") if est is None else est / info["true_params"][k] - 1)
+        twin = _twin_truth(env, info["probe_piece"])
+        for k in STIFFNESS:
+            est = info["estimated_params"][k]
+            errs_twin[k].append(float("nan") if est is None or twin is None
+                                else est / twin[k] - 1)
     return {"layout": layout, "scenes": scenes, "probes": probes, "calibrated": calibrated,
             "calibration": label,
-            "seeds": [seeds[0], seeds[-1]], "errors": errs,
+            "seeds": [seeds[0], seeds[-1]], "errors": errs, "errors_twin": errs_twin,
             "wall_median": float(np.median(walls)), "reset_cpu_median": float(np.median(cpus))}
+
+
+def _twin_truth(env: FoodFetchEnv, k: int) -> dict[str, float] | None:
+    """The probed piece's true K1, K2, B from its elastic twin under the env's probe, as
+    the env gives them with ``true_stiffness="elastic_twin"`` (None where the twin is held
+    at no placement)."""
+    piece = dataclasses.replace(env.pieces[k], x=0.0, y=0.0)
+    try:
+        return true_parameters_exact(piece, env.probe_config, env.geometry)
+    except SimulationDivergedError:
+        return None
 
 
 def summary(errs: list[float]) -> dict[str, float]:
@@ -89,7 +117,8 @@ def summary(errs: list[float]) -> dict[str, float]:
 def table(results: list[dict[str, Any]]) -> str:
     lines = ["| layout | probes | calibration | scenes | " + " | ".join(
         f"{k} median / 95th" for k in ("g1", "tau1", "mu"))
-        + " | reset CPU | against env probes |", "|---|---|---|---|---|---|---|---|---|"]
+        + " | K1 median / 95th, elastic twin | reset CPU | against env probes |",
+        "|---|---|---|---|---|---|---|---|---|---|"]
     base = {r["layout"]: r["reset_cpu_median"] for r in results
             if r["probes"] == "env" and r["calibrated"]}
     for r in results:
@@ -97,6 +126,10 @@ def table(results: list[dict[str, Any]]) -> str:
         for k in ("g1", "tau1", "mu"):
             s = summary(r["errors"][k])
             cells.append(f"{100 * s['median']:.1f} / {100 * s['p95']:.1f} %")
+        twin = r.get("errors_twin", {}).get("K1")
+        s = summary(twin) if twin else None
+        cells.append(f"{100 * s['median']:.1f} / {100 * s['p95']:.1f} %" if s and s["found"]
+                     else "-")
         n = len(r["errors"]["g1"])
         cpu, ref = r["reset_cpu_median"], base.get(r["layout"])
         ratio = f"{cpu / ref:.2f}x" if ref else ""
@@ -131,6 +164,7 @@ def main(argv: list[str] | None = None) -> int:
             "command": "python benchmarks/bench_env_estimates.py " + " ".join(argv or sys.argv[1:])}
     for r in results:
         r["summary"] = {k: summary(r["errors"][k]) for k in PARAM_NAMES}
+        r["summary_twin"] = {k: summary(r["errors_twin"][k]) for k in STIFFNESS}
     args.out.mkdir(parents=True, exist_ok=True)
     text = json.dumps({"meta": meta, "results": results}, indent=1)
     name = "env_estimates" if args.scenes == "study" else f"env_estimates_{args.scenes}"

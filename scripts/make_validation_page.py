@@ -738,7 +738,12 @@ def main() -> int:
                      "Block scenes (above), which that env applies, shown beside the food "
                      "space's.  The "
                      "probed piece of a multi-piece scene is simulated alone, so its errors "
-                     "are the food's, and the layouts differ in the foods they draw.  Reset "
+                     "are the food's, and the layouts differ in the foods they draw.  K1 "
+                     "is held to the probed piece's elastic twin under each row's probe "
+                     "(`fetch_env.probes.true_parameters_exact`, the truth the estimators are "
+                     "validated and calibrated against, which the envs give with "
+                     "`true_stiffness=\"elastic_twin\"`), not to the nominal `2 E A / l` "
+                     "that `info[\"true_params\"]` holds by default.  Reset "
                      "CPU: the median CPU time of a reset (scene, probes, fits), and its "
                      "ratio to the calibrated `env` probes' on the same layout. "
                      f"Command: `{data['meta']['command'].strip()}`.\n\n")
