@@ -296,24 +296,24 @@ def test_held_out_precise_tuning_foods_no_large_miss_is_reliable() -> None:
     times, each without an eighth of the 512 tuning foods (calm and with 1 % noise): on the
     held-out foods, coverage of g1, tau1 and mu stays within 90-99 %; with and without noise
     no food with a g1, tau1 or mu error over 5 % is flagged reliable (21 such foods in
-    each); without noise none with a mu error over 3 % either (2 such foods), with noise at
-    most one (measured: 1 of 3, a 4.1 % miss whose five slides agree; the noisy slides'
-    limit is set on the slides' larger study, where it flags all 10 readings past 3 %);
-    without noise at most 9.5 % of the foods whose errors are all under 2 % are flagged
-    unreliable (measured: 39 of 452, 8.6 %), with noise at most 16 % (61 of 409, 14.9 %)."""
+    each); at most one with a mu error over 3 % is (measured: 1 of 2 without noise, a 3.1 %
+    small cube, and 1 of 3 with noise, a 4.1 % miss whose five slides agree; the slides'
+    limit is set on their larger study, where it flags the one reading past 5 %); at most
+    7 % of the foods whose errors are all under 2 % are flagged unreliable without noise
+    (measured: 27 of 452, 6.0 %) and at most 10 % with noise (39 of 409, 9.5 %)."""
     runs = [json.loads((DATA / f"tuning_precise_uncal_noise{nz}.json").read_text())["records"]
             for nz in ("0", "0.01")]
     held = cross_validate(runs[0], runs, coverage=error_coverage("precise"),
                           reliability=RELIABILITY["precise"])
-    for h, mu_reliable in zip(held, (0, 1), strict=True):
+    for h in held:
         assert h["reliability"]["over_5pct_flagged_reliable"] == 0, h["reliability"]
         assert h["reliability"]["n_over_5pct"] >= 10
         for k in ("g1", "tau1", "mu"):
             assert 0.90 <= h[k]["coverage"] <= 0.99, (k, h[k]["coverage"])
         mu_off = [r for r in h["records"] if abs(r["error"]["mu"]) > 0.03]
         assert len(mu_off) >= 2, len(mu_off)
-        assert sum(r["reliable"] for r in mu_off) <= mu_reliable, mu_off
+        assert sum(r["reliable"] for r in mu_off) <= 1, mu_off
     calm, noisy = held[0]["reliability"], held[1]["reliability"]
     assert calm["n_under_2pct"] >= 400 and noisy["n_under_2pct"] >= 380
-    assert calm["under_2pct_flagged_unreliable"] <= 0.095 * calm["n_under_2pct"], calm
-    assert noisy["under_2pct_flagged_unreliable"] <= 0.16 * noisy["n_under_2pct"], noisy
+    assert calm["under_2pct_flagged_unreliable"] <= 0.07 * calm["n_under_2pct"], calm
+    assert noisy["under_2pct_flagged_unreliable"] <= 0.10 * noisy["n_under_2pct"], noisy
