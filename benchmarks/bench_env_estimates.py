@@ -22,7 +22,6 @@ another space's (``fetch_env.env_scenes.SCENE_SPACES``) and names the files afte
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import platform
@@ -98,9 +97,8 @@ def _twin_truth(env: FoodFetchEnv, k: int) -> dict[str, float] | None:
     """The probed piece's true K1, K2, B from its elastic twin under the env's probe, as
     the env gives them with ``true_stiffness="elastic_twin"`` (None where the twin is held
     at no placement)."""
-    piece = dataclasses.replace(env.pieces[k], x=0.0, y=0.0)
-    try:
-        return true_parameters_exact(piece, env.probe_config, env.geometry)
+    try:  # the twin is placed where the probes clamp (elastic_stiffness)
+        return true_parameters_exact(env.pieces[k], env.probe_config, env.geometry)
     except SimulationDivergedError:
         return None
 

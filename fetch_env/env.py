@@ -775,11 +775,10 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         are NaN (None in ``info["true_params"]``) and ``warnings`` says why."""
         if self.true_stiffness == "nominal":
             return true_parameters(piece)
-        centred = dataclasses.replace(piece, x=0.0, y=0.0)  # where the probes clamp it
-        try:
+        try:  # the twin is placed where the probes clamp (elastic_stiffness)
             return dict(self._truths.get_or(
-                (centred, self.probe_config),
-                lambda: true_parameters_exact(centred, self.probe_config, self.geometry)))
+                (piece, self.probe_config),
+                lambda: true_parameters_exact(piece, self.probe_config, self.geometry)))
         except SimulationDivergedError as exc:
             warnings.append(f"true stiffness: {exc}")
             return {**true_parameters(piece), "K1": math.nan, "K2": math.nan, "B": math.nan}
