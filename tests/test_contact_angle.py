@@ -14,7 +14,6 @@ import dataclasses
 import numpy as np
 import pytest
 
-from fetch_env import probes
 from fetch_env.controller import SimResult
 from fetch_env.errors import InvalidParameterError, SimulationDivergedError
 from fetch_env.food_space import REPORTING_SEED, TUNING_SEED, sample_foods
@@ -25,6 +24,7 @@ from fetch_env.probes import (
     ProbeConfig,
     elastic_stiffness,
     run_probes,
+    truth,
 )
 
 N_FOODS = 8
@@ -110,7 +110,7 @@ def test_a_given_contact_angle_rescales_k1_by_eq_7_and_one_past_the_hold_is_igno
 
 def _fitted_contact_angle(run: SimResult) -> float:
     """The full fit's contact angle on ``run``, as the probes fit it."""
-    from fetch_env.probes import _estimate_clamp
+    from fetch_env.probes.relaxation import _estimate_clamp
 
     return float(_estimate_clamp(run, 0.0, None, None, False)[3].theta_1)
 
@@ -142,7 +142,7 @@ def _refused_at_the_centre(index: int, fault: str, monkeypatch: pytest.MonkeyPat
     held with the default placements (its elastic_stiffness)."""
     piece = sample_foods(256, REPORTING_SEED)[index].piece()
     config = PROBE_PRESETS["precise"]
-    monkeypatch.setattr(probes, "TWIN_SHIFTS", (0.0,))
+    monkeypatch.setattr(truth, "TWIN_SHIFTS", (0.0,))
     with pytest.raises(SimulationDivergedError, match=fault):
         elastic_stiffness(piece, config)
     monkeypatch.undo()

@@ -16,11 +16,10 @@ from fetch_env.probes import (
     PROBE_CALIBRATIONS,
     PROBE_PRESETS,
     ProbeConfig,
-    _ClampFit,
-    _median_of_clamps,
     repeat_strains,
     run_probes,
 )
+from fetch_env.probes.relaxation import _ClampFit, _median_of_clamps
 
 
 def test_squeezes_alternate_around_the_set_strain() -> None:

@@ -26,7 +26,6 @@ from estimators.calibration import (
 )
 from estimators.errors import EstimationError
 from estimators.uncertainty import DRIFT_DIAGNOSTICS
-from fetch_env import probes
 from fetch_env.errors import SimulationDivergedError
 from fetch_env.layouts import single_block
 from fetch_env.materials import Material
@@ -37,6 +36,7 @@ from fetch_env.probes import (
     ProbeOutcome,
     apply_calibration,
     reads_drift,
+    slip,
 )
 from tests.test_error_model import ESTIMATE, _diagnostics
 
@@ -206,7 +206,7 @@ def test_slides_that_could_not_all_be_compared_give_no_agreement_to_read() -> No
     material = Material(young=8e5, g1=0.35, tau1=1.2, mu=0.4)
     piece = dataclasses.replace(single_block("ellipsoid", 0.012, material)[0], x=0.0, y=0.0)
     config = PROBE_PRESETS["precise"]
-    slides = [probes._slide_run(piece, config, None, t) for t in probes.slide_times(config)]
+    slides = [slip._slide_run(piece, config, None, t) for t in slip.slide_times(config)]
     lost = SimulationDivergedError("diverged", {}, {})
     outs = []
     for ahead in (slides, [slides[0], lost, *slides[2:]]):
@@ -216,7 +216,7 @@ def test_slides_that_could_not_all_be_compared_give_no_agreement_to_read() -> No
                                                         repeat_sd_log_g1=0.01,
                                                         repeat_sd_log_tau1=0.01)},
                            intervals={k: (0.99 * v, 1.01 * v) for k, v in ESTIMATE.items()})
-        probes._slip_probe(piece, config, None, 0.0, np.random.default_rng(0), out, False,
+        slip._slip_probe(piece, config, None, 0.0, np.random.default_rng(0), out, False,
                            ahead=ahead)
         outs.append(out)
     whole, partial = outs

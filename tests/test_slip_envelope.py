@@ -12,7 +12,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fetch_env import probes
 from fetch_env.controller import PHASE_CODE, FetchAction, SimResult
 from fetch_env.errors import InvalidParameterError
 from fetch_env.food_space import Food, sample_foods
@@ -22,6 +21,7 @@ from fetch_env.probes import (
     SLIP_ENVELOPES,
     ProbeConfig,
     estimate_mu,
+    slip,
     slip_run,
 )
 
@@ -187,7 +187,7 @@ def test_a_bouncing_piece_is_read_from_its_firmly_pressed_samples(
     level takes off: read from every gripping sample (share 0) mu comes out high (measured
     mean +16 %); from the firmly pressed ones its mean is within 0.5 % (measured +0.15 %)
     and its median |error| under 0.5 % (measured 0.21 %)."""
-    monkeypatch.setattr(probes, "NOISY_SLIP_MIN_SHARE", share)
+    monkeypatch.setattr(slip, "NOISY_SLIP_MIN_SHARE", share)
     run = _bouncing_slip()
     errors = np.array([estimate_mu(run, 0.01, np.random.default_rng(seed),
                                    envelope="per_blade_slipping")[0] / MU - 1

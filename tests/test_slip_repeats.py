@@ -27,13 +27,11 @@ from fetch_env.probes import (
     PROBE_PRESETS,
     ProbeConfig,
     ProbeOutcome,
-    _median_of_slides,
-    _SlideFit,
-    _slip_probe,
     estimate_mu,
     slide_times,
     slip_run,
 )
+from fetch_env.probes.slip import _median_of_slides, _SlideFit, _slip_probe
 from tests.test_error_model import _synthetic_rows
 
 CHECK_SEED = 3000  # the estimator check foods (tuning 1000, reporting 2000)
