@@ -166,17 +166,12 @@ class TimeScale:
             elapsed physical time [-], 0 (a constant ``factor``) to 0.5.
         clamp_speed: clamp speed a slower clamp is simulated at [rad/s], 0 (every clamp in
             real time) or within the action's clamp speeds.
-        max_step: the most physical time one scaled step of a hold stands for [s]; None:
-            ``MAX_TIME_SCALE`` physics steps (0.25 s at the 5 ms step, 50 ms at 1 ms).  A
-            fine step taken for the contact's sake (the ``precise`` probes' 1 ms) need not
-            cross the late hold, where the moment hardly moves, in finer strides.
     """
 
     factor: float = 1.0
     realtime: float = 0.25
     growth: float = 0.0
     clamp_speed: float = 0.0
-    max_step: float | None = None
 
     def __post_init__(self) -> None:
         require_finite("factor", self.factor)
@@ -190,10 +185,6 @@ class TimeScale:
         require(self.clamp_speed == 0.0
                 or OMEGA_RANGE[0] <= self.clamp_speed <= OMEGA_RANGE[1], "clamp_speed",
                 self.clamp_speed, f"0 or in [{OMEGA_RANGE[0]}, {OMEGA_RANGE[1]}] rad/s")
-        if self.max_step is not None:
-            require_finite("max_step", self.max_step)
-            require(0.0 < self.max_step <= 1.0, "max_step", self.max_step,
-                    "in (0, 1] s or None")
 
     @property
     def holds_scaled(self) -> bool:
@@ -210,9 +201,8 @@ class TimeScale:
         starts ``elapsed`` s after the hold began (the last step is cut to end on time)."""
         steps: list[float] = []
         end = elapsed + length
-        cap = MAX_TIME_SCALE if self.max_step is None else max(self.max_step / dt, 1.0)
         while end - elapsed > 1e-9 * dt:
-            h = min(max(self.factor, self.growth * elapsed / dt), cap) * dt
+            h = min(max(self.factor, self.growth * elapsed / dt), MAX_TIME_SCALE) * dt
             h = min(h, end - elapsed)
             steps.append(h)
             elapsed += h

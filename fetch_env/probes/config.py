@@ -79,9 +79,6 @@ class ProbeConfig:
             TimeScale`); 1 simulates it in real time.
         hold_time_growth: each scaled step of the relaxation hold stands for at least this
             share of the hold's elapsed time (log-spaced steps, ``TimeScale.growth``).
-        hold_max_step: the most physical time one scaled step of the relaxation hold stands
-            for [s] (``TimeScale.max_step``); None: ``controller.MAX_TIME_SCALE`` physics
-            steps.
         relaxation_impratio: MuJoCo's ``impratio`` in the relaxation probe's scene (the base
             scene's is 1000, which makes friction nearly Coulomb for the fetch and the slip).
             The held piece must not creep, but 30 is enough for that and halves the Newton
@@ -161,7 +158,6 @@ class ProbeConfig:
     relaxation_contact_ratio: float | None = None
     slip_gap: float | None = None
     slip_repeats: int = 1
-    hold_max_step: float | None = None
 
     def __post_init__(self) -> None:
         for name, (lo, hi, lo_open) in _PROBE_LIMITS.items():
@@ -173,10 +169,6 @@ class ProbeConfig:
             require_finite("relaxation_timestep", self.relaxation_timestep)
             require(1e-4 <= self.relaxation_timestep <= 0.02, "relaxation_timestep",
                     self.relaxation_timestep, "in [1e-4, 0.02] s or None")
-        if self.hold_max_step is not None:
-            require_finite("hold_max_step", self.hold_max_step)
-            require(0 < self.hold_max_step <= 1.0, "hold_max_step", self.hold_max_step,
-                    "in (0, 1] s or None")
         if self.slip_gap is not None:
             require_finite("slip_gap", self.slip_gap)
             require(0 <= self.slip_gap <= 0.01, "slip_gap", self.slip_gap,

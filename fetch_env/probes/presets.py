@@ -89,24 +89,11 @@ PROBE_PRESETS: dict[str, ProbeConfig] = {
     # spread flags 115 to flag those), and the longest read a few foods low without noise
     # (the 0.675 and 1.01 s slides alone 2.6 and 3.3 % at the 95th percentile, the 0.3 s
     # one 1.3 %).
-    #
-    # The late hold in strides of up to 0.1 s (hold_max_step; the 1 ms step's default cap
-    # is 50 steps, 50 ms, where the other presets' 5 ms step strides 0.25 s): on 128 tuning
-    # foods, uncalibrated, each food's g1 and tau1 moved by 0.002 % at the median and the
-    # tails not beyond the clamps' chaos (foods 0-63, median / 95th percentile / max |error|:
-    # g1 0.30 / 2.57 / 4.8 % against 0.32 / 2.58 / 4.7 %, tau1 0.31 / 3.60 / 15 % against
-    # 0.30 / 3.78 / 30 %; foods 64-127: g1 0.33 / 2.15 / 7.2 % against 0.36 / 2.42 / 8.9 %,
-    # tau1 0.44 / 3.08 / 19 % against 0.54 / 4.12 / 14 %), for 0.81-0.87x the probes' CPU
-    # time, paired in one sitting.  Strides of 0.25 s saved 0.81x but read tau1 0.1 points
-    # further off at the median, and a real-time start of 0.1 or 0.15 s instead of
-    # HOLD_SETTLE's 0.25 s let one food's g1 go 17-31 % off; five clamps instead of seven
-    # (their median) left tau1's 90th percentile at 3.0 % against 2.6 % and its worst at 49 %.
     "precise": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade_simex",
                            relaxation_repeats=7, contact_angle="camera",
                            relaxation_timestep=0.001, relaxation_impratio=1e4,
                            relaxation_contact_ratio=2.25, slip_gap=RELAXATION_GAP,
-                           slip_strain=0.03, slip_timestep=0.0025, slip_repeats=5,
-                           hold_max_step=0.1),
+                           slip_strain=0.03, slip_timestep=0.0025, slip_repeats=5),
 }
 
 # Calibrations of the presets' systematic errors, fitted on the validation harness's tuning

@@ -201,8 +201,7 @@ def _relaxation_clamp(sim: FetchSimulator, config: ProbeConfig, strain: float) -
                          settle=config.settle)
     return sim.run("relaxation", action,
                    time_scale=TimeScale(config.hold_time_scale, realtime=HOLD_SETTLE,
-                                        growth=config.hold_time_growth,
-                                        max_step=config.hold_max_step))
+                                        growth=config.hold_time_growth))
 
 
 def relaxation_run(piece: Piece, config: ProbeConfig, geometry: Geometry | None,
