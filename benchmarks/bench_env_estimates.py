@@ -73,12 +73,13 @@ def run(layout: str, probes: str, calibrated: bool, seeds: list[int],
              else f"{layout} scenes")
     errs: dict[str, list[float]] = {k: [] for k in PARAM_NAMES}
     errs_twin: dict[str, list[float]] = {k: [] for k in STIFFNESS}
-    walls, cpus = [], []
+    walls, cpus, reliable = [], [], []
     for seed in seeds:
         cpu = time.process_time()
         _, info = env.reset(seed=seed)
         cpus.append(time.process_time() - cpu)
         walls.append(env.last_probe_wall_time)
+        reliable.append(bool(info["probe_reliable"]))
         for k in PARAM_NAMES:
             est = info["estimated_params"][k]
             errs[k].append(float("nan") if est is None else est / info["true_params"][k] - 1)
@@ -90,6 +91,7 @@ def run(layout: str, probes: str, calibrated: bool, seeds: list[int],
     return {"layout": layout, "scenes": scenes, "probes": probes, "calibrated": calibrated,
             "calibration": label,
             "seeds": [seeds[0], seeds[-1]], "errors": errs, "errors_twin": errs_twin,
+            "reliable": reliable,
             "wall_median": float(np.median(walls)), "reset_cpu_median": float(np.median(cpus))}
 
 
@@ -112,11 +114,30 @@ def summary(errs: list[float]) -> dict[str, float]:
             "p95": float(np.percentile(ok, 95)), "max": float(ok.max())}
 
 
+# A scene's estimate is a miss where g1, tau1 or mu is more than MISS off, good where all
+# three are within GOOD (the bars of docs/estimator_validation.md's reliable flag).
+MISS, GOOD = 0.05, 0.02
+
+
+def reliable_counts(r: dict[str, Any]) -> str:
+    """``info["probe_reliable"]`` against the errors: the misses called reliable and the
+    good scenes flagged unreliable, as "a of b / c of d" (or "-" for a run without it)."""
+    if "reliable" not in r:
+        return "-"
+    errs = np.abs(np.array([r["errors"][k] for k in ("g1", "tau1", "mu")], dtype=float))
+    worst = np.where(np.isfinite(errs), errs, np.inf).max(axis=0)  # not identified: a miss
+    flags = np.array(r["reliable"], dtype=bool)
+    miss, good = worst > MISS, worst < GOOD
+    return (f"{int((flags & miss).sum())} of {int(miss.sum())} / "
+            f"{int((~flags & good).sum())} of {int(good.sum())}")
+
+
 def table(results: list[dict[str, Any]]) -> str:
     lines = ["| layout | probes | calibration | scenes | " + " | ".join(
         f"{k} median / 95th" for k in ("g1", "tau1", "mu"))
-        + " | K1 median / 95th, elastic twin | reset CPU | against env probes |",
-        "|---|---|---|---|---|---|---|---|---|---|"]
+        + " | K1 median / 95th, elastic twin | reliable: misses > 5 % called reliable / "
+        "good < 2 % flagged | reset CPU | against env probes |",
+        "|---|---|---|---|---|---|---|---|---|---|---|"]
     base = {r["layout"]: r["reset_cpu_median"] for r in results
             if r["probes"] == "env" and r["calibrated"]}
     for r in results:
@@ -133,7 +154,7 @@ def table(results: list[dict[str, Any]]) -> str:
         ratio = f"{cpu / ref:.2f}x" if ref else ""
         label = r.get("calibration", "food space" if r["calibrated"] else "no")
         lines.append(f"| {r['layout']} | {r['probes']} | {label} | {n} | " + " | ".join(cells)
-                     + f" | {1e3 * cpu:.0f} ms | {ratio} |")
+                     + f" | {reliable_counts(r)} | {1e3 * cpu:.0f} ms | {ratio} |")
     return "\n".join(lines) + "\n"
 
 

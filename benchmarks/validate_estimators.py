@@ -60,6 +60,7 @@ from estimators.calibration import (
     ErrorRow,
     fit_calibration,
     fit_error_model,
+    reference_range,
 )
 from estimators.errors import EstimationError
 from fetch_env.env_scenes import BLOCK_CALIBRATION_SEED, block_foods
@@ -385,10 +386,13 @@ def calibrate(records: list[dict[str, Any]], sd_now: dict[str, float],
     return out
 
 
-def _fit_calibration(runs: list[Path], preset: str, check: bool, form: str = "linear") -> int:
+def _fit_calibration(runs: list[Path], preset: str, check: bool, form: str = "linear",
+                     range_only: bool = False) -> int:
     """Fit ``preset``'s calibration (of ``form``) on the first run's records and its error
     model on all runs', and write them into the package; or, with ``check``, print what an
-    8-fold cross-validation over the foods gives instead (coverage, reliability per run)."""
+    8-fold cross-validation over the foods gives instead (coverage, reliability per run);
+    or, with ``range_only``, set only the shipped calibration's reference range from the
+    runs' foods (every food with complete estimates, as a fit would see them)."""
     data = [json.loads(run.read_text()) for run in runs]
     fit_set = data[0]["meta"]["set"]
     for run, d in zip(runs, data, strict=True):
@@ -409,13 +413,22 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool, form: str = "li
     meta = data[0]["meta"]
     source = (f"{', '.join(run.name for run in runs)} ({meta['set']} set, seed {meta['seed']}, "
               f"{meta['n']} foods, preset {preset})")
+    table_ = json.loads(CALIBRATION_FILE.read_text()) if CALIBRATION_FILE.exists() else {}
     try:
-        cal = fit_models(records[0], records, source=source, form=form,
-                         coverage=error_coverage(preset),
-                         reliability=RELIABILITY.get(preset))
+        if range_only:
+            shipped = table_.get(calibration_key(fit_set, preset))
+            if shipped is None:
+                raise SystemExit(f"validate_estimators: no shipped calibration "
+                                 f"{calibration_key(fit_set, preset)!r} to set a range on")
+            foods = [(s, z, e) for run in records for s, z, e, _ in _uncalibrated_foods(run)]
+            cal = dataclasses.replace(Calibration.from_dict(shipped),
+                                      reference_range=reference_range(foods))
+        else:
+            cal = fit_models(records[0], records, source=source, form=form,
+                             coverage=error_coverage(preset),
+                             reliability=RELIABILITY.get(preset))
     except EstimationError as exc:
         raise SystemExit(f"validate_estimators: {exc}") from None
-    table_ = json.loads(CALIBRATION_FILE.read_text()) if CALIBRATION_FILE.exists() else {}
     table_[calibration_key(fit_set, preset)] = cal.to_dict()
     _write_atomic(CALIBRATION_FILE, json.dumps(table_, indent=1) + "\n")
     print(json.dumps(cal.to_dict(), indent=1))
@@ -534,7 +547,10 @@ def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]
                           diagnostics=[r.get("diagnostics") or {} for r in used], form=form)
     rows = [row for run in runs for i, row in error_rows([r for r in run if use(r)], cal)]
     em = fit_error_model(rows, source=source, coverage=coverage, **(reliability or {}))
-    return dataclasses.replace(cal, error_model=em)
+    # where it holds: every food the calibration or its error model was fitted on
+    seen = [(shape, size, est) for shape, size, est, _, _ in rows]
+    seen += [(shape, size, est) for shape, size, est, _ in _uncalibrated_foods(used)]
+    return dataclasses.replace(cal, error_model=em, reference_range=reference_range(seen))
 
 
 def cross_validate(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
@@ -617,6 +633,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--form", choices=FORMS, default="linear",
                    help="with --fit-calibration: the calibration's form (default linear; "
                    f"quadratic needs {QUADRATIC_MIN_FOODS} foods or more)")
+    p.add_argument("--range-only", action="store_true",
+                   help="with --fit-calibration: keep the shipped calibration's coefficients "
+                   "and error model and set only its reference range (the foods it holds "
+                   "for) from the runs' records")
     p.add_argument("--cross-validate", action="store_true",
                    help="with --fit-calibration: print the 8-fold cross-validated summary of "
                    "each run instead of writing anything")
@@ -626,7 +646,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.fit_calibration is not None:
         return _fit_calibration(args.fit_calibration, args.preset, args.cross_validate,
-                                args.form)
+                                args.form, args.range_only)
     if args.calibrate is not None:
         data = json.loads(args.calibrate.read_text())
         used = data["meta"].get("systematic_sd", dict.fromkeys(PARAM_NAMES, 0.0))
@@ -666,10 +686,21 @@ def main(argv: list[str] | None = None) -> int:
     records = list(done.values())
     t0 = time.perf_counter()
     stopped = _run_foods(foods, args, calibrated, jsonl, records)
-    meta["wall_s"] = time.perf_counter() - t0
+    # a resumed run's wall time: the finished part's, as its last summary holds it, and this one's
+    meta["wall_s"] = time.perf_counter() - t0 + (_earlier_wall_s(args.out / f"{name}.json")
+                                                  if done else 0.0)
     with StopSignals() as late:  # a stop while the results are written waits for them
         late.armed = False
         return _write_results(args, name, records, meta, jsonl, stopped)
+
+
+def _earlier_wall_s(summary: Path) -> float:
+    """The wall time a run's last written summary holds (0 where there is none), so that a
+    run resumed from its records reports the time all its foods took."""
+    try:
+        return float(json.loads(summary.read_text())["meta"]["wall_s"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return 0.0
 
 
 def stopped_exit_code(stopped: str) -> int:

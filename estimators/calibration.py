@@ -69,6 +69,7 @@ __all__ = [
     "NOISY_HOLD_RMS",
     "OPTIONAL_ERROR_INPUTS",
     "QUADRATIC_MIN_FOODS",
+    "REFERENCE_QUANTITIES",
     "TARGETS",
     "TARGET_EXTRA_FEATURES",
     "Calibration",
@@ -80,6 +81,8 @@ __all__ = [
     "fit_calibration",
     "fit_error_model",
     "noisy_traces",
+    "reference_quantities",
+    "reference_range",
 ]
 
 FEATURES: tuple[str, ...] = ("1", "cube", "sphere", "log_size", "log_stiffness", "mu", "g1",
@@ -118,6 +121,75 @@ _INDICATORS = ("1", "cube", "sphere")  # the features that are not continuous
 # 10.8 % to 8.6 / 8.9 / 8.7 %; fitted on 250 foods of the one-clamp "measure" probes it left
 # tau1's median worse (1.84 -> 1.93 %).  So fewer reference foods than this refuse it.
 QUADRATIC_MIN_FOODS = 500
+
+# The food as the probes read it (size from the camera, the rest the probes' own estimates),
+# whose range over a calibration's reference foods is where the calibration holds
+# (:attr:`Calibration.reference_range`).  Outside it the correction and the error model's
+# intervals are extrapolated: on 32 foods of 5-200 MPa (the harness's stiff set, seed 2001,
+# ``precise`` probes) the intervals of g1 and tau1 covered the truth on 16 and 13 % of the
+# foods, and 16 of the 18 with an error over 5 % were called reliable; 28 of the 32 lie
+# above the stiffness their 1024 reference runs reached, the other four (5.8-9 MPa) were
+# measured within 2.7 % (3.3 % with 1 % noise).  The range has no margin: in the 8-fold
+# cross-validation of the precise probes' tuning foods, where each fold's range comes from
+# seven eighths of them, it flags 6-8 more of the 452 foods measured within 2 % (7 of 409
+# with noise); a margin of 2 % of each range's span removed that cost but let through a
+# stiff food it was meant to flag (an 11 MPa, 22 mm ellipsoid, g1 10 % off).
+REFERENCE_QUANTITIES: tuple[str, ...] = ("size", "stiffness_per_size", "mu", "g1", "tau1")
+_REFERENCE_UNITS = {"size": ("mm", 1e3), "stiffness_per_size": ("MN/m^2", 1e-6),
+                    "mu": ("", 1.0), "g1": ("", 1.0), "tau1": ("s", 1.0)}
+
+
+def reference_quantities(shape: str, size: float, estimate: Mapping[str, float]
+                         ) -> dict[str, float]:
+    """The :data:`REFERENCE_QUANTITIES` of one probed food: its size [m], (K1 + K2) / size
+    [N/m^2], and the estimated mu, g1 and tau1 [s].
+
+    Raises:
+        EstimationError: as :func:`features`.
+    """
+    _food_features(shape, size, estimate)
+    return {"size": float(size),
+            "stiffness_per_size": float((estimate["K1"] + estimate["K2"]) / size),
+            "mu": float(estimate["mu"]), "g1": float(estimate["g1"]),
+            "tau1": float(estimate["tau1"])}
+
+
+def reference_range(foods: Sequence[tuple[str, float, Mapping[str, float]]]
+                    ) -> dict[str, tuple[float, float]]:
+    """The least and greatest of each of :data:`REFERENCE_QUANTITIES` over ``foods``
+    (``(shape, size, estimate)`` each; foods with incomplete estimates are skipped).
+
+    Raises:
+        EstimationError: no food has complete estimates.
+    """
+    values = []
+    for i, food in enumerate(_records("foods", foods, 3)):
+        try:
+            values.append(reference_quantities(*food))
+        except EstimationError:
+            continue
+        except (TypeError, KeyError) as exc:
+            raise EstimationError(f"foods[{i}] must be (shape, size, estimate), got "
+                                  f"{food!r:.60}") from exc
+    if not values:
+        raise EstimationError("a reference range needs at least one food with complete "
+                              "estimates")
+    return {q: (min(v[q] for v in values), max(v[q] for v in values))
+            for q in REFERENCE_QUANTITIES}
+
+
+def _check_reference_range(bounds: object) -> None:
+    """Refuse a reference range that is not ``{quantity: (low, high)}`` over
+    :data:`REFERENCE_QUANTITIES` with finite ``low <= high``."""
+    if bounds is None:
+        return
+    if not isinstance(bounds, Mapping) or set(bounds) != set(REFERENCE_QUANTITIES):
+        raise EstimationError(f"reference_range must map {REFERENCE_QUANTITIES} to (low, high), "
+                              f"got {bounds!r:.80}")
+    for q, b in bounds.items():
+        if not _finite_numbers(b, 2) or b[0] > b[1]:
+            raise EstimationError(f"reference_range[{q!r}] must be two finite numbers, low "
+                                  f"<= high, got {b!r:.60}")
 
 
 def design_names(names: Sequence[str], form: str = "linear") -> tuple[str, ...]:
@@ -272,6 +344,10 @@ class Calibration:
             :meth:`apply` needs the trace's diagnostics).
         form: "linear" or "quadratic" (:func:`design`): ``coefficients`` has one entry per
             column of :func:`design_names`.
+        reference_range: the least and greatest of each of :data:`REFERENCE_QUANTITIES`
+            over the reference foods it and its error model were fitted on
+            (:func:`reference_range`), or None where unknown; a food outside it is
+            extrapolated to (:meth:`outside_reference`).
     """
 
     coefficients: Mapping[str, Sequence[float]]
@@ -280,9 +356,11 @@ class Calibration:
     error_model: ErrorModel | None = None
     feature_names: tuple[str, ...] = FEATURES
     form: str = "linear"
+    reference_range: Mapping[str, tuple[float, float]] | None = None
 
     def __post_init__(self) -> None:
         mapping("calibration coefficients", self.coefficients)
+        _check_reference_range(self.reference_range)
         instance("error_model", self.error_model, ErrorModel | None, "an ErrorModel or None")
         names = tuple(self.feature_names) if isinstance(self.feature_names, Sequence) else ()
         if names not in (FEATURES, FEATURES + EXTRA_FEATURES):
@@ -322,6 +400,29 @@ class Calibration:
         out.update(K1=(1 - g1) * k_el, K2=g1 * k_el, B=tau1 * g1 * k_el, g1=g1, tau1=tau1)
         return out, warns
 
+    def outside_reference(self, shape: str, size: float, estimate: Mapping[str, float]
+                          ) -> list[str]:
+        """What of a probed food lies outside :attr:`reference_range` (uncalibrated
+        ``estimate``, as :meth:`apply` takes it), one phrase each, e.g. ``"stiffness per size
+        180 MN/m^2 (reference foods 0.012-10.7)"``; empty where it lies within, or where the
+        range is unknown.
+
+        Raises:
+            EstimationError: as :func:`features`.
+        """
+        if self.reference_range is None:
+            return []
+        values = reference_quantities(shape, size, estimate)
+        out = []
+        for q in REFERENCE_QUANTITIES:
+            lo, hi = self.reference_range[q]
+            if not lo <= values[q] <= hi:
+                unit, scale = _REFERENCE_UNITS[q]
+                out.append(f"{q.replace('_', ' ')} {scale * values[q]:.3g}"
+                           f"{' ' + unit if unit else ''} (reference foods "
+                           f"{scale * lo:.3g}-{scale * hi:.3g})")
+        return out
+
     def to_dict(self) -> dict[str, object]:
         out: dict[str, object] = {
             "features": list(self.feature_names), "form": self.form,
@@ -329,6 +430,9 @@ class Calibration:
             "n_foods": self.n_foods, "source": self.source}
         if self.error_model is not None:
             out["error_model"] = self.error_model.to_dict()
+        if self.reference_range is not None:
+            out["reference_range"] = {q: list(map(float, b))
+                                      for q, b in self.reference_range.items()}
         return out
 
     @classmethod
@@ -345,10 +449,13 @@ class Calibration:
         form = data.get("form", "linear")
         if form not in FORMS:
             raise EstimationError(f"calibration form must be one of {FORMS}, got {form!r}")
+        bounds = data.get("reference_range")
+        if isinstance(bounds, Mapping):
+            bounds = {str(q): tuple(b) for q, b in bounds.items()}  # type: ignore[arg-type]
         return cls({t: tuple(float(v) for v in coef[t]) for t in TARGETS},
                    int(data.get("n_foods", 0)), str(data.get("source", "")),  # type: ignore[arg-type]
                    ErrorModel.from_dict(em) if isinstance(em, Mapping) else None, names,
-                   str(form))
+                   str(form), bounds)  # type: ignore[arg-type]
 
 
 def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mapping[str, float]]],
@@ -385,7 +492,7 @@ def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mappi
         raise EstimationError(f"diagnostics must give one mapping per food ({len(records)}), "
                               f"got {diagnostics!r:.60}")
     names = FEATURES if diagnostics is None else FEATURES + EXTRA_FEATURES
-    rows, ys = [], {t: [] for t in TARGETS}
+    rows, ys, used = [], {t: [] for t in TARGETS}, []
     for i, (shape, size, est, true) in enumerate(records):
         try:
             x = features(shape, size, est, None if diagnostics is None else diagnostics[i],
@@ -398,6 +505,7 @@ def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mappi
             raise EstimationError(f"foods[{i}] truth must give finite, positive K1, K2, g1, "
                                   f"tau1, got {truth!r}")
         rows.append(x)
+        used.append((shape, size, est))
         ys["K_el"].append(math.log((est["K1"] + est["K2"]) / (truth["K1"] + truth["K2"])))
         ys["g1"].append(math.log(est["g1"] / truth["g1"]))
         ys["tau1"].append(math.log(est["tau1"] / truth["tau1"]))
@@ -416,7 +524,8 @@ def fit_calibration(foods: Sequence[tuple[str, float, Mapping[str, float], Mappi
         b = np.zeros(X.shape[1])
         b[cols] = fit.x
         coef[t] = tuple(float(v) for v in b)
-    return Calibration(coef, len(rows), source, feature_names=names, form=form)
+    return Calibration(coef, len(rows), source, feature_names=names, form=form,
+                       reference_range=reference_range(used))
 
 
 # The error model's inputs per parameter: the food as probed (as for the calibration), the

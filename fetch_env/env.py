@@ -232,6 +232,13 @@ _COMMON_DOC = """
 
     ## Info
     reset: ``true_params``, ``estimated_params`` (SI, None if not identified), ``probe_piece``,
+    ``probe_intervals`` (each estimate's 95 % interval ``[low, high]`` in SI, including the
+    probe's model error where its calibration has an error model; None where not
+    identified; the oracle's are its exact values), ``probe_reliable`` (every parameter
+    identified and the probes' ``reliable`` flag, ``fetch_env.probes.ProbeOutcome.reliable``:
+    the intervals of g1, tau1 and mu are narrow; False for a piece the probes cannot
+    measure well, such as a die stiffer than 5 MPa, whose ``visco_valid`` may still be 1;
+    how often the flag is right is measured in ``docs/estimator_validation.md``),
     ``probe_warnings``, ``probe_calibration`` (the calibration applied to the estimates, or
     None), ``pieces`` (scene description), ``hold``, ``clipped`` (every value clipped, capped
     or replaced: a list of ``{{"rule", "name", "given", "applied", "reason"}}``, empty when
@@ -354,6 +361,9 @@ _COMMON_DOC = """
       wide scene space (``scenes="wide"``: the estimators' food space, 8-25 mm, 0.0123-5 MPa,
       mu 0.1-0.8; slippery, very soft, stiff, small and large pieces).  Physics, probes,
       actions and observations are those of v0.
+    - v0 (0.2.0): ``info["probe_intervals"]`` and ``info["probe_reliable"]`` say how sure
+      the estimates are (a piece outside the probes' calibration, such as a die stiffer
+      than the food space, is not reliable); observations unchanged.
     - v0 (0.2.0): ``true_stiffness="elastic_twin"`` defines K1, K2, B of
       ``info["true_params"]`` and the oracle as the estimators' validation does (the
       default, "nominal", is as before).
@@ -374,6 +384,14 @@ _COMMON_DOC = """
       over 40 diced mixes with outcomes at the chaos floor; ``fetch_impratio=1000`` gives
       1000).
 """
+
+
+def _interval_or_none(bounds: tuple[float, float] | None) -> list[float] | None:
+    """A 95 % interval as info holds it: ``[low, high]`` in SI, or None where the probes
+    gave none or a bound is not finite."""
+    if bounds is None or not all(math.isfinite(b) for b in bounds):
+        return None
+    return [float(bounds[0]), float(bounds[1])]
 
 
 def _obs_table() -> str:
@@ -743,12 +761,15 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
             flags = {"visco_valid": float(outcome.visco_valid),
                      "friction_valid": float(outcome.friction_valid)}
             warnings = list(outcome.warnings)
+            reliable, intervals = outcome.reliable, dict(outcome.intervals)
         elif self.estimator == "oracle":
             est = dict(true)
             flags = {"visco_valid": 1.0, "friction_valid": 1.0}
+            reliable, intervals = True, {n: (v, v) for n, v in true.items()}
         else:
             est = dict.fromkeys(PARAM_NAMES, math.nan)
             flags = {"visco_valid": 0.0, "friction_valid": 0.0}
+            reliable, intervals = False, {}
         self.last_probe_wall_time = time.perf_counter() - wall
         obs = encode_observation({**est, **flags, **layout_features(pieces)})
         # What the policy actually sees: a parameter dropped by the encoder is NaN here too.
@@ -757,10 +778,15 @@ class FoodFetchEnv(gym.Env[np.ndarray, np.ndarray]):
         # unequal (gymnasium's determinism checks use ==).
         estimated = {n: (float(est[n]) if math.isfinite(seen[n]) else None)
                      for n in PARAM_NAMES}
+        bounds = {n: _interval_or_none(intervals.get(n)) if estimated[n] is not None else None
+                  for n in PARAM_NAMES}
         self._episode_hold = self._hold_from(estimated)
         info = {"true_params": {n: (float(v) if math.isfinite(v) else None)
                                 for n, v in true.items()},
                 "estimated_params": estimated, "probe_piece": k,
+                "probe_reliable": bool(reliable and all(v is not None
+                                                        for v in estimated.values())),
+                "probe_intervals": bounds,
                 "probe_warnings": warnings, "pieces": [p.to_dict() for p in pieces],
                 "probe_calibration": (self.probe_calibration.source
                                       if self.probe_calibration and self.estimator == "model"

@@ -185,6 +185,55 @@ def test_estimator_oracle_and_none_observations() -> None:
     assert all(v is None for v in info_none["estimated_params"].values())
 
 
+def test_info_says_how_sure_each_estimator_is() -> None:
+    """``probe_intervals`` and ``probe_reliable``: the model's are its probes' (intervals
+    in SI around each estimate, None where not identified), the oracle's exact, and the
+    ``none`` estimator's empty and never reliable."""
+    from fetch_env.probes import run_probes
+
+    env = gym.make("FoodFetch-Block-v0", **CHEAP, **CHEAP_PROBES)
+    _, info = env.reset(seed=11)
+    u = env.unwrapped
+    direct = run_probes(u.pieces, u.probe_config, calibration=u.probe_calibration)
+    for k, v in info["estimated_params"].items():
+        iv = info["probe_intervals"][k]
+        if v is None:
+            assert iv is None, k
+            continue
+        assert iv == list(direct.intervals[k]), k
+        assert iv[0] <= v <= iv[1], k
+    assert info["probe_reliable"] is (direct.reliable and all(
+        v is not None for v in info["estimated_params"].values()))
+    _, oracle = make(estimator="oracle").reset(options={"preset": "block"})
+    assert oracle["probe_reliable"] is True
+    assert all(iv == [v, v] for v, iv in zip(oracle["true_params"].values(),
+                                             oracle["probe_intervals"].values(), strict=True))
+    _, none = make(estimator="none").reset(options={"preset": "block"})
+    assert none["probe_reliable"] is False
+    assert all(v is None for v in none["probe_intervals"].values())
+
+
+def test_a_die_stiffer_than_the_food_space_is_observed_but_not_reliable() -> None:
+    """A 40 MPa die (the Diced and TwoRows levels reach 200 MPa) lies beyond the foods the
+    env probes' calibration was fitted on: its estimates are still observed, and info says
+    they are not to be trusted, and why."""
+    import dataclasses
+    import warnings
+
+    from fetch_env import ParameterClippedWarning
+
+    env = gym.make("FoodFetch-Block-v0", **CHEAP)
+    die = preset_scene("block")[0]
+    die = dataclasses.replace(die, material=dataclasses.replace(die.material, young=40e6))
+    with warnings.catch_warnings():  # (whether MuJoCo's conditioning caps it is not the point)
+        warnings.simplefilter("ignore", ParameterClippedWarning)
+        _, info = env.reset(options={"pieces": (die,)})
+    assert info["estimated_params"]["g1"] is not None
+    assert info["probe_reliable"] is False
+    assert any("outside the calibration's reference foods (stiffness per size" in w
+               for w in info["probe_warnings"])
+
+
 def test_true_stiffness_elastic_twin_is_the_validation_s_truth() -> None:
     """``true_stiffness="elastic_twin"``: info's K1, K2, B (and the oracle's) are the probed
     piece's elastic twin's (``fetch_env.probes.true_parameters_exact`` under the env's

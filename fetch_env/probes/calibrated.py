@@ -29,7 +29,11 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     ``details["error_half_width"]`` keeps the half-widths, and
     ``details["reliable_half_width"]`` and ``details["reliable_diagnostics"]`` the model's
     own widths and diagnostic limits for :attr:`ProbeOutcome.reliable`, where it has them
-    (a warning names the diagnostics past their limits).  Where the model has a noisy model
+    (a warning names the diagnostics past their limits).  A food outside the calibration's
+    reference foods (:meth:`estimators.calibration.Calibration.outside_reference`: stiffer,
+    larger or with a g1 beyond any it was fitted on) is extrapolated to:
+    ``details["outside_reference"]`` says how, a warning says so, and the outcome is not
+    reliable.  Where the model has a noisy model
     and the food's traces carry sensor noise (:func:`estimators.calibration.noisy_traces`),
     that one gives the widths and the limits.
     """
@@ -58,6 +62,12 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     out.details["calibration"] = calibration.source
     est.update(fixed)
     out.warnings += warns
+    outside = calibration.outside_reference(shape, size, own)
+    if outside:
+        out.details["outside_reference"] = outside
+        out.warnings.append("not reliable: this food lies outside the calibration's "
+                            f"reference foods ({'; '.join(outside)}), so its correction and "
+                            "intervals are extrapolated")
     if calibration.error_model is None:
         return
     # the model for this food: the noisy one where its traces carry sensor noise

@@ -48,8 +48,10 @@ class ProbeOutcome:
         :func:`apply_calibration`; with an error model the intervals include the per-food
         error it predicts), and the diagnostics that model limits
         (``details["reliable_diagnostics"]``, e.g. the repeated clamps' spread) are within
-        their limits."""
-        if not (self.visco_valid and self.friction_valid):
+        their limits, and the food lies within the calibration's reference foods (no
+        ``details["outside_reference"]``, :func:`apply_calibration`)."""
+        if not (self.visco_valid and self.friction_valid) or self.details.get(
+                "outside_reference"):
             return False
         widths = self.details.get("reliable_half_width") or {}
         for name in ("g1", "tau1", "mu"):
