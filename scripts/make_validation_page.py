@@ -798,9 +798,18 @@ def main() -> int:
                      "(`fetch_env.probes.true_parameters_exact`, the truth the estimators are "
                      "validated and calibrated against, which the envs give with "
                      "`true_stiffness=\"elastic_twin\"`), not to the nominal `2 E A / l` "
-                     "that `info[\"true_params\"]` holds by default.  Reset "
+                     "that `info[\"true_params\"]` holds by default.  Reliable: "
+                     "`info[\"probe_reliable\"]` against the errors, the scenes more than "
+                     "5 % off in g1, tau1 or mu that it called reliable and the scenes "
+                     "within 2 % in all three that it called unreliable: the one-clamp "
+                     "probes' intervals are wide, so the flag is rarely True, and it never "
+                     "called a miss reliable.  Reset "
                      "CPU: the median CPU time of a reset (scene, probes, fits), and its "
-                     "ratio to the calibrated `env` probes' on the same layout. "
+                     "ratio to the calibrated `env` probes' on the same layout; each row "
+                     "runs in its own worker beside another, so a ratio moves by up to 0.3 "
+                     "between sittings (the Block `measure` row with the Block calibration: "
+                     "1.44x in an earlier one, 1.15x in this one; the same probes with the "
+                     "food space's calibration 1.34x in this one). "
                      f"Command: `{data['meta']['command'].strip()}`.\n\n")
         parts.append(env_table(data["results"]) + "\n")
     parts.append(any_shape_rows_section())

@@ -198,3 +198,16 @@ def test_estimate_says_which_probes_and_calibration_it_applied(
     line = f"probes: measure (1 relaxation clamp, 1 slide, fit contact angle); calibration: {said}"
     assert line in printed
     assert json.loads(out.read_text())["details"]["settings"]["calibration"] == said
+
+
+def test_estimate_flags_a_food_stiffer_than_its_calibration_s_reference_foods(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """A 40 MPa sphere is estimated, called unreliable, and the report says why (it lies
+    beyond the stiffness of the calibration's reference foods), with exit 0: an answer,
+    honestly qualified."""
+    assert main(["estimate", "--probes", "measure", "--shape", "sphere", "--size", "0.015",
+                 "--young", "40e6"]) == 0
+    printed = capsys.readouterr().out
+    assert "reliable: False" in printed
+    assert ("warning: not reliable: this food lies outside the calibration's reference foods "
+            "(stiffness per size") in printed
