@@ -392,7 +392,8 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool, form: str = "li
     model on all runs', and write them into the package; or, with ``check``, print what an
     8-fold cross-validation over the foods gives instead (coverage, reliability per run);
     or, with ``range_only``, set only the shipped calibration's reference range from the
-    runs' foods (every food with complete estimates, as a fit would see them)."""
+    runs' foods (every food with complete estimates and a g1 short of its bound,
+    :func:`estimators.calibration.reference_range`)."""
     data = [json.loads(run.read_text()) for run in runs]
     fit_set = data[0]["meta"]["set"]
     for run, d in zip(runs, data, strict=True):
@@ -644,6 +645,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="print the systematic sds that give 95 %% coverage on a finished "
                    "run's records (a tuning run) and exit")
     args = p.parse_args(argv)
+    if args.range_only and (args.fit_calibration is None or args.cross_validate
+                            or args.form != "linear"):
+        p.error("--range-only goes with --fit-calibration, without --cross-validate or --form")
     if args.fit_calibration is not None:
         return _fit_calibration(args.fit_calibration, args.preset, args.cross_validate,
                                 args.form, args.range_only)
@@ -686,19 +690,21 @@ def main(argv: list[str] | None = None) -> int:
     records = list(done.values())
     t0 = time.perf_counter()
     stopped = _run_foods(foods, args, calibrated, jsonl, records)
-    # a resumed run's wall time: the finished part's, as its last summary holds it, and this one's
-    meta["wall_s"] = time.perf_counter() - t0 + (_earlier_wall_s(args.out / f"{name}.json")
-                                                  if done else 0.0)
+    meta["wall_s"] = time.perf_counter() - t0  # this sitting's
+    if done:  # a resumed run: what its earlier sittings took, as its last summary says
+        meta["resumed_records"] = len(done)
+        meta["wall_s_earlier"] = _earlier_wall_s(args.out / f"{name}.json")
     with StopSignals() as late:  # a stop while the results are written waits for them
         late.armed = False
         return _write_results(args, name, records, meta, jsonl, stopped)
 
 
 def _earlier_wall_s(summary: Path) -> float:
-    """The wall time a run's last written summary holds (0 where there is none), so that a
-    run resumed from its records reports the time all its foods took."""
+    """The wall time of every sitting a run's last written summary covers (its own and
+    its earlier ones; 0 where there is none)."""
     try:
-        return float(json.loads(summary.read_text())["meta"]["wall_s"])
+        meta = json.loads(summary.read_text())["meta"]
+        return float(meta["wall_s"]) + float(meta.get("wall_s_earlier", 0.0))
     except (OSError, ValueError, KeyError, TypeError):
         return 0.0
 

@@ -70,6 +70,7 @@ __all__ = [
     "OPTIONAL_ERROR_INPUTS",
     "QUADRATIC_MIN_FOODS",
     "REFERENCE_QUANTITIES",
+    "SATURATED_G1",
     "TARGETS",
     "TARGET_EXTRA_FEATURES",
     "Calibration",
@@ -135,6 +136,9 @@ QUADRATIC_MIN_FOODS = 500
 # with noise); a margin of 2 % of each range's span removed that cost but let through a
 # stiff food it was meant to flag (an 11 MPa, 22 mm ellipsoid, g1 10 % off).
 REFERENCE_QUANTITIES: tuple[str, ...] = ("size", "stiffness_per_size", "mu", "g1", "tau1")
+# A g1 reading at or above this is a hold fit that ran into g1 < 1 (two of the env probes'
+# 512 tuning runs, whose tau1 then read 32 s), not a reference food's value.
+SATURATED_G1 = 0.99
 _REFERENCE_UNITS = {"size": ("mm", 1e3), "stiffness_per_size": ("MN/m^2", 1e-6),
                     "mu": ("", 1.0), "g1": ("", 1.0), "tau1": ("s", 1.0)}
 
@@ -157,7 +161,8 @@ def reference_quantities(shape: str, size: float, estimate: Mapping[str, float]
 def reference_range(foods: Sequence[tuple[str, float, Mapping[str, float]]]
                     ) -> dict[str, tuple[float, float]]:
     """The least and greatest of each of :data:`REFERENCE_QUANTITIES` over ``foods``
-    (``(shape, size, estimate)`` each; foods with incomplete estimates are skipped).
+    (``(shape, size, estimate)`` each; foods with incomplete estimates, or a g1 of
+    :data:`SATURATED_G1` or more, a fit that ran into its bound, are skipped).
 
     Raises:
         EstimationError: no food has complete estimates.
@@ -165,12 +170,14 @@ def reference_range(foods: Sequence[tuple[str, float, Mapping[str, float]]]
     values = []
     for i, food in enumerate(_records("foods", foods, 3)):
         try:
-            values.append(reference_quantities(*food))
+            v = reference_quantities(*food)
         except EstimationError:
             continue
         except (TypeError, KeyError) as exc:
             raise EstimationError(f"foods[{i}] must be (shape, size, estimate), got "
                                   f"{food!r:.60}") from exc
+        if v["g1"] < SATURATED_G1:  # a fit that ran into g1's bound measured nothing
+            values.append(v)
     if not values:
         raise EstimationError("a reference range needs at least one food with complete "
                               "estimates")
@@ -345,9 +352,9 @@ class Calibration:
         form: "linear" or "quadratic" (:func:`design`): ``coefficients`` has one entry per
             column of :func:`design_names`.
         reference_range: the least and greatest of each of :data:`REFERENCE_QUANTITIES`
-            over the reference foods it and its error model were fitted on
-            (:func:`reference_range`), or None where unknown; a food outside it is
-            extrapolated to (:meth:`outside_reference`).
+            over its reference foods, as probed (:func:`reference_range`; the shipped
+            calibrations': every food of their tuning runs with complete estimates), or None
+            where unknown; a food outside it is extrapolated to (:meth:`outside_reference`).
     """
 
     coefficients: Mapping[str, Sequence[float]]
@@ -361,6 +368,10 @@ class Calibration:
     def __post_init__(self) -> None:
         mapping("calibration coefficients", self.coefficients)
         _check_reference_range(self.reference_range)
+        if self.reference_range is not None:  # one form, whatever sequences were given
+            object.__setattr__(self, "reference_range", {
+                q: (float(self.reference_range[q][0]), float(self.reference_range[q][1]))
+                for q in REFERENCE_QUANTITIES})
         instance("error_model", self.error_model, ErrorModel | None, "an ErrorModel or None")
         names = tuple(self.feature_names) if isinstance(self.feature_names, Sequence) else ()
         if names not in (FEATURES, FEATURES + EXTRA_FEATURES):
@@ -402,10 +413,11 @@ class Calibration:
 
     def outside_reference(self, shape: str, size: float, estimate: Mapping[str, float]
                           ) -> list[str]:
-        """What of a probed food lies outside :attr:`reference_range` (uncalibrated
-        ``estimate``, as :meth:`apply` takes it), one phrase each, e.g. ``"stiffness per size
-        180 MN/m^2 (reference foods 0.012-10.7)"``; empty where it lies within, or where the
-        range is unknown.
+        """What of a probed food lies outside :attr:`reference_range`, on either side
+        (uncalibrated ``estimate``, as :meth:`apply` takes it), one phrase each, e.g.
+        ``"stiffness per size 180 MN/m^2, 16.9 times the reference foods' greatest, 10.67"``;
+        empty where it lies within, or where the range is unknown (a calibration written
+        without one).
 
         Raises:
             EstimationError: as :func:`features`.
@@ -418,9 +430,14 @@ class Calibration:
             lo, hi = self.reference_range[q]
             if not lo <= values[q] <= hi:
                 unit, scale = _REFERENCE_UNITS[q]
-                out.append(f"{q.replace('_', ' ')} {scale * values[q]:.3g}"
-                           f"{' ' + unit if unit else ''} (reference foods "
-                           f"{scale * lo:.3g}-{scale * hi:.3g})")
+                low = values[q] < lo
+                edge, end = (lo, "least") if low else (hi, "greatest")
+                ratio = values[q] / edge if edge else math.inf
+                how = (f"{ratio:.3g} times" if ratio >= 2 else
+                       f"{100 * abs(ratio - 1):.2g} % {'below' if low else 'above'}")
+                out.append(f"{q.replace('_', ' ')} {scale * values[q]:.4g}"
+                           f"{' ' + unit if unit else ''}, {how} the reference foods' "
+                           f"{end}, {scale * edge:.4g}")
         return out
 
     def to_dict(self) -> dict[str, object]:
@@ -449,9 +466,7 @@ class Calibration:
         form = data.get("form", "linear")
         if form not in FORMS:
             raise EstimationError(f"calibration form must be one of {FORMS}, got {form!r}")
-        bounds = data.get("reference_range")
-        if isinstance(bounds, Mapping):
-            bounds = {str(q): tuple(b) for q, b in bounds.items()}  # type: ignore[arg-type]
+        bounds = data.get("reference_range")  # None in a file written without it
         return cls({t: tuple(float(v) for v in coef[t]) for t in TARGETS},
                    int(data.get("n_foods", 0)), str(data.get("source", "")),  # type: ignore[arg-type]
                    ErrorModel.from_dict(em) if isinstance(em, Mapping) else None, names,

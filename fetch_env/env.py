@@ -234,11 +234,15 @@ _COMMON_DOC = """
     reset: ``true_params``, ``estimated_params`` (SI, None if not identified), ``probe_piece``,
     ``probe_intervals`` (each estimate's 95 % interval ``[low, high]`` in SI, including the
     probe's model error where its calibration has an error model; None where not
-    identified; the oracle's are its exact values), ``probe_reliable`` (every parameter
-    identified and the probes' ``reliable`` flag, ``fetch_env.probes.ProbeOutcome.reliable``:
-    the intervals of g1, tau1 and mu are narrow; False for a piece the probes cannot
-    measure well, such as a die stiffer than 5 MPa, whose ``visco_valid`` may still be 1;
-    how often the flag is right is measured in ``docs/estimator_validation.md``),
+    identified or a bound is not finite; the oracle's are its exact values; extrapolated
+    for a piece outside the calibration's reference foods), ``probe_reliable`` (every
+    parameter identified and the probes' ``reliable`` flag,
+    ``fetch_env.probes.ProbeOutcome.reliable``: the intervals of g1, tau1 and mu are narrow
+    and the piece lies within the calibration's reference foods, so False for, e.g., a die
+    far stiffer than the food space, whose ``visco_valid`` may still be 1; without a
+    calibration (``probe_calibrated=False``) there is no range to check.  The environments'
+    probes give wide intervals, so the flag is rarely True: it says which estimates not to
+    trust; ``docs/estimator_validation.md`` counts it per layout),
     ``probe_warnings``, ``probe_calibration`` (the calibration applied to the estimates, or
     None), ``pieces`` (scene description), ``hold``, ``clipped`` (every value clipped, capped
     or replaced: a list of ``{{"rule", "name", "given", "applied", "reason"}}``, empty when

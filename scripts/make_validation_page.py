@@ -19,6 +19,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.bench_env_estimates import reliable_counts  # noqa: E402
 from benchmarks.bench_env_estimates import table as env_table  # noqa: E402
 from benchmarks.probe_twins import table as twins_table  # noqa: E402
 from benchmarks.relaxation_contact import table as contact_table  # noqa: E402
@@ -33,6 +34,7 @@ from benchmarks.validate_estimators import (  # noqa: E402
     summarize,
     table,
 )
+from estimators.calibration import Calibration  # noqa: E402
 from fetch_env.env_scenes import BLOCK_CALIBRATION_SEED  # noqa: E402
 from fetch_env.food_space import REPORTING_SEED, TUNING_SEED  # noqa: E402
 from fetch_env.probes import PROBE_CALIBRATIONS  # noqa: E402
@@ -169,9 +171,9 @@ calls a 5 % miss reliable is False on some foods the probe measured within 2 % (
 `precise` probes 8-12 % of them without noise and 13-17 % with 1 % noise on the
 reporting foods below, where mu's error is mostly the noise's, which the five slides'
 spread shows only in part, so some foods are flagged for a spread the noise alone made).
-Nor is a food reliable that lies outside the calibration's reference foods (stiffer,
-larger, or with a g1, tau1 or mu beyond any the calibration was fitted on:
-`estimators.calibration.Calibration.reference_range`): there the correction and the
+Nor is a food reliable that lies outside the calibration's reference foods, on either
+side, in size, K1 + K2 over size, g1, tau1 or mu
+(`estimators.calibration.Calibration.reference_range`): there the correction and the
 intervals are extrapolated ([below](#foods-stiffer-than-the-food-space-5-200-mpa)).
 
 Each run: `python benchmarks/validate_estimators.py --set SET --n 64 --workers 2
@@ -710,7 +712,7 @@ def stiff_section() -> str:
     loaded = [data for data in map(_committed, STIFF_RUNS) if data]
     if len(loaded) < len(STIFF_RUNS):
         return ""
-    cal = PROBE_CALIBRATIONS["precise"]
+    cal = Calibration.from_dict(loaded[0]["meta"]["calibration"])  # the one the runs applied
     lo, hi = (v * 1e-6 for v in loaded[0]["meta"]["young_range"])
     out = [f"## Foods stiffer than the food space ({lo:g}-{hi:g} MPa)\n\n"
            f"The `precise` probes on {loaded[0]['meta']['n']} foods of the food space's "
@@ -719,9 +721,9 @@ def stiff_section() -> str:
            "sensor noise.  A gentle probe hardly deforms such a piece, and the calibration "
            "and its error model were fitted on softer foods, so there they are "
            "extrapolated: the intervals do not cover the truth as they claim.  What the "
-           "probes say instead is that they are not to be trusted: a food the calibration "
-           "was not fitted on, stiffer (by its K1 + K2 over its size), larger or with a "
-           "g1, tau1 or mu beyond any of its reference foods "
+           "probes say instead is that they are not to be trusted: a food outside the "
+           "calibration's reference foods, on either side, in size, K1 + K2 over size, "
+           "g1, tau1 or mu "
            "(`estimators.calibration.Calibration.reference_range`, shipped with each "
            "calibration: the range over its tuning runs), is called unreliable, with a "
            "warning naming what lies outside.  The reporting foods of the food space are "
@@ -738,13 +740,41 @@ def stiff_section() -> str:
         within = (f": {min(young):.1f}-{max(young):.1f} MPa, every g1, tau1 and mu within "
                   f"{100 * max(worst):.1f} %, {sum(r['reliable'] for r in inside)} called "
                   "reliable" if inside else "")
-        left = len(recs) - len(calibrated)  # a diagnostic the calibration reads missing
-        uncal = f" ({left} not calibrated, so unreliable)" if left else ""
-        out.append(f"\n{len(calibrated) - len(inside)} of {len(recs)} foods lie outside "
-                   f"the reference foods{uncal}; {len(inside)} inside{within}.  Command: "
+        outside = sum("outside the calibration's reference foods" in " ".join(r["warnings"])
+                      for r in recs)
+        out.append(f"\n{outside} of {len(recs)} foods lie outside the reference foods; "
+                   f"{len(inside)} inside{within}.  Command: "
                    f"`{meta['command'].strip()}`.  ![errors](data/validation/"
                    f"{meta['set']}_{meta['preset']}_noise{meta['noise']:g}_errors.png)\n\n")
     return "".join(out)
+
+
+def _misses_called_reliable(results: list[dict[str, Any]]) -> str:
+    """How many scenes more than 5 % off the env's reliable flag called reliable, over
+    every row of a bench_env_estimates run, in words."""
+    counts = [reliable_counts(r).split(" / ")[0] for r in results if "reliable" in r]
+    called = sum(int(c.split(" of ")[0]) for c in counts)
+    misses = sum(int(c.split(" of ")[1]) for c in counts)
+    return f"of the {misses} scene estimates more than 5 % off, {called} were called reliable"
+
+
+def _same_probes_ratios(results: list[dict[str, Any]]) -> str:
+    """The Block rows that run the same ``measure`` probes with two calibrations: their
+    reset-CPU ratios differ only by the machine's noise."""
+    base = next(r["reset_cpu_median"] for r in results
+                if r["layout"] == "block" and r["probes"] == "env" and r["calibrated"])
+    rows = [r for r in results if r["layout"] == "block" and r["probes"] == "measure"]
+    ratios = " and ".join(f"{r['reset_cpu_median'] / base:.2f}x" for r in rows)
+    return f"the Block `measure` rows, the same probes with two calibrations, read {ratios}"
+
+
+def _wall(meta: dict[str, Any]) -> str:
+    """A run's wall time in words: one sitting's, or a resumed run's sittings'."""
+    if "wall_s_earlier" not in meta:
+        return f"{meta['wall_s']:.0f} s"
+    return (f"{meta['wall_s_earlier'] + meta['wall_s']:.0f} s over more than one sitting "
+            f"(the last {meta['wall_s']:.1f} s, resumed from {meta['resumed_records']} "
+            "records)")
 
 
 def _workers(meta: dict[str, Any]) -> str:
@@ -766,7 +796,7 @@ def main() -> int:
         parts.append(table(data["summary"], f"{meta['set']} set, {meta['n']} foods, seed "
                                             f"{meta['seed']}, noise {meta['noise']:g}"))
         parts.append(f"\nMachine: {meta['machine']}, {meta['cpus']} cores, Python "
-                     f"{meta['python']}; {meta['wall_s']:.0f} s with {_workers(meta)}.  "
+                     f"{meta['python']}; {_wall(meta)} with {_workers(meta)}.  "
                      f"![errors]({'data/validation/' + stem}_errors.png)\n\n")
     parts.append(larger_draw_section())
     parts.append(stiff_section())
@@ -801,15 +831,14 @@ def main() -> int:
                      "that `info[\"true_params\"]` holds by default.  Reliable: "
                      "`info[\"probe_reliable\"]` against the errors, the scenes more than "
                      "5 % off in g1, tau1 or mu that it called reliable and the scenes "
-                     "within 2 % in all three that it called unreliable: the one-clamp "
-                     "probes' intervals are wide, so the flag is rarely True, and it never "
-                     "called a miss reliable.  Reset "
+                     "within 2 % in all three that it called unreliable (the probes of the "
+                     "environments' 5 ms step give wide intervals, so the flag is rarely "
+                     f"True; {_misses_called_reliable(data['results'])}).  Reset "
                      "CPU: the median CPU time of a reset (scene, probes, fits), and its "
                      "ratio to the calibrated `env` probes' on the same layout; each row "
-                     "runs in its own worker beside another, so a ratio moves by up to 0.3 "
-                     "between sittings (the Block `measure` row with the Block calibration: "
-                     "1.44x in an earlier one, 1.15x in this one; the same probes with the "
-                     "food space's calibration 1.34x in this one). "
+                     "runs in its own worker beside another, so a ratio moves by tenths "
+                     "between sittings, and more for the `repeated` rows "
+                     f"({_same_probes_ratios(data['results'])}). "
                      f"Command: `{data['meta']['command'].strip()}`.\n\n")
         parts.append(env_table(data["results"]) + "\n")
     parts.append(any_shape_rows_section())

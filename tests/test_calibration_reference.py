@@ -58,6 +58,18 @@ def test_a_fit_records_the_range_of_its_reference_foods() -> None:
     assert reference_range([f[:3] for f in foods]) == r
 
 
+def test_a_file_without_a_range_reads_as_unknown_and_saturated_fits_are_left_out() -> None:
+    cal = fit_calibration(_foods(30))
+    old = cal.to_dict()
+    del old["reference_range"]
+    assert Calibration.from_dict(old).reference_range is None
+    listed = Calibration.from_dict({**cal.to_dict()})  # lists in the file, tuples in memory
+    assert listed == cal and isinstance(listed.reference_range["g1"], tuple)  # type: ignore[index]
+    foods = [f[:3] for f in _foods(30)]
+    stuck = ("cube", 0.015, {**foods[0][2], "g1": 0.999999, "tau1": 40.0})
+    assert reference_range([*foods, stuck]) == reference_range(foods)
+
+
 def test_a_food_outside_the_range_is_named_and_one_inside_is_not() -> None:
     cal = fit_calibration(_foods(30))
     shape, size, est = "sphere", 0.015, dict(_foods(30)[15][2])
@@ -65,8 +77,9 @@ def test_a_food_outside_the_range_is_named_and_one_inside_is_not() -> None:
     stiff = {**est, "K1": 100 * est["K1"], "K2": 100 * est["K2"]}
     out = cal.outside_reference(shape, size, stiff)
     assert len(out) == 1 and out[0].startswith("stiffness per size") and "MN/m^2" in out[0]
-    big = cal.outside_reference(shape, 0.025, {**est, "g1": 0.05})
-    assert [s.split(" ")[0] for s in big] == ["size", "g1"] and "25 mm" in big[0]
+    big = cal.outside_reference(shape, 0.025, {**est, "g1": 0.15})
+    assert big == ["size 25 mm, 25 % above the reference foods' greatest, 20",
+                   "g1 0.15, 25 % below the reference foods' least, 0.2"]
     # a calibration without a range (fitted elsewhere) knows of no outside
     assert dataclasses.replace(cal, reference_range=None).outside_reference(
         shape, size, stiff) == []
@@ -108,7 +121,8 @@ def test_an_outcome_outside_the_reference_foods_is_not_reliable_and_says_why() -
     out = _outcome()
     apply_calibration(shape, size, dataclasses.replace(inside, reference_range=narrow), out)
     assert not out.reliable
-    assert out.details["outside_reference"][0].startswith("stiffness per size 0.0667 MN/m^2")
+    assert out.details["outside_reference"] == [
+        "stiffness per size 0.06667 MN/m^2, 6.67 times the reference foods' greatest, 0.01"]
     assert any("outside the calibration's reference foods" in w for w in out.warnings)
     assert_allclose(out.estimates["g1"], FOOD[2]["g1"])  # still calibrated and reported
 
@@ -158,3 +172,40 @@ def test_the_food_space_flags_are_as_committed(name: str) -> None:
     outside = [r for r in recs if cal.outside_reference(r["food"]["shape"], r["food"]["size"],
                                                         r["uncalibrated"])]
     assert len(outside) <= 1
+
+
+@pytest.mark.parametrize(("key", "runs"), [
+    ("precise", "tuning_precise_uncal"), ("measure", "tuning_measure_uncal"),
+    ("env", "tuning_env_uncal"), ("repeated", "tuning_repeated_uncal"),
+    ("measure/block-study", "block_measure_uncal")])
+def test_each_shipped_range_is_that_of_its_committed_tuning_runs(key: str, runs: str) -> None:
+    """The shipped ranges are what ``--fit-calibration ... --range-only`` computes from the
+    runs each calibration names (no g1 at its fit's bound among them)."""
+    from benchmarks.validate_estimators import _uncalibrated_foods
+
+    foods = [(s, z, e) for nz in ("0", "0.01")
+             for s, z, e, _ in _uncalibrated_foods(_records(f"{runs}_noise{nz}"))]
+    shipped = PROBE_CALIBRATIONS[key].reference_range
+    assert shipped == reference_range(foods)
+    assert shipped is not None and shipped["g1"][1] < 0.99
+
+
+def test_range_only_is_refused_with_cross_validation_or_a_form() -> None:
+    from benchmarks.validate_estimators import main
+
+    for extra in (["--cross-validate"], ["--form", "quadratic"], []):
+        args = ["--range-only", *extra] + (
+            ["--fit-calibration", str(DATA / "tuning_precise_uncal_noise0.json")]
+            if extra else [])
+        with pytest.raises(SystemExit) as stop:
+            main(args)
+        assert stop.value.code == 2, args
+
+
+def test_a_resumed_run_counts_its_earlier_sittings(tmp_path: Path) -> None:
+    from benchmarks.validate_estimators import _earlier_wall_s
+
+    summary = tmp_path / "run.json"
+    assert _earlier_wall_s(summary) == 0.0
+    summary.write_text(json.dumps({"meta": {"wall_s": 10.0, "wall_s_earlier": 5.0}}))
+    assert _earlier_wall_s(summary) == 15.0

@@ -230,7 +230,9 @@ def test_a_die_stiffer_than_the_food_space_is_observed_but_not_reliable() -> Non
         _, info = env.reset(options={"pieces": (die,)})
     assert info["estimated_params"]["g1"] is not None
     assert info["probe_reliable"] is False
-    assert any("outside the calibration's reference foods (stiffness per size" in w
+    assert any("outside the calibration's reference foods" in w and
+               "extrapolated: stiffness per size" in w and "times the reference foods' "
+               "greatest" in w
                for w in info["probe_warnings"])
 
 

@@ -30,10 +30,10 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     ``details["reliable_half_width"]`` and ``details["reliable_diagnostics"]`` the model's
     own widths and diagnostic limits for :attr:`ProbeOutcome.reliable`, where it has them
     (a warning names the diagnostics past their limits).  A food outside the calibration's
-    reference foods (:meth:`estimators.calibration.Calibration.outside_reference`: stiffer,
-    larger or with a g1 beyond any it was fitted on) is extrapolated to:
+    reference foods on either side, in size, K1 + K2 over size, mu, g1 or tau1
+    (:meth:`estimators.calibration.Calibration.outside_reference`), is extrapolated to:
     ``details["outside_reference"]`` says how, a warning says so, and the outcome is not
-    reliable.  Where the model has a noisy model
+    reliable; its estimates and intervals are still given.  Where the model has a noisy model
     and the food's traces carry sensor noise (:func:`estimators.calibration.noisy_traces`),
     that one gives the widths and the limits.
     """
@@ -45,6 +45,7 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
         out.warnings.append("not calibrated: the estimates are incomplete")
         return
     own = dict(est)
+    _flag_outside_reference(shape, size, calibration, own, out)
     try:
         fixed, warns = calibration.apply(shape, size, own, out.details.get("diagnostics", {}))
     except EstimationError as exc:
@@ -62,12 +63,6 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
     out.details["calibration"] = calibration.source
     est.update(fixed)
     out.warnings += warns
-    outside = calibration.outside_reference(shape, size, own)
-    if outside:
-        out.details["outside_reference"] = outside
-        out.warnings.append("not reliable: this food lies outside the calibration's "
-                            f"reference foods ({'; '.join(outside)}), so its correction and "
-                            "intervals are extrapolated")
     if calibration.error_model is None:
         return
     # the model for this food: the noisy one where its traces carry sensor noise
@@ -91,6 +86,23 @@ def apply_calibration(shape: str, size: float, calibration: Calibration,
             out.warnings.append("not reliable: the probes did not measure this food "
                                 f"reproducibly ({', '.join(past)}, past the error model's "
                                 "limits)")
+
+
+def _flag_outside_reference(shape: str, size: float, calibration: Calibration,
+                            own: dict[str, float], out: ProbeOutcome) -> None:
+    """Where the probed food (``own``: its uncalibrated estimates) lies outside the
+    calibration's reference foods, say how in ``out.details["outside_reference"]`` and a
+    warning (:attr:`ProbeOutcome.reliable` is then False), whether or not the calibration
+    then applies."""
+    try:
+        outside = calibration.outside_reference(shape, size, own)
+    except EstimationError:  # an estimate the calibration cannot read: apply() says why
+        return
+    if outside:
+        out.details["outside_reference"] = outside
+        out.warnings.append("not reliable: this food lies outside the calibration's "
+                            f"reference foods, so its correction and intervals are "
+                            f"extrapolated: {'; '.join(outside)}")
 
 
 _VISCO_SPRINGS = ("K1", "K2", "B")
