@@ -36,6 +36,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from agents.atomic import write_atomic
+from benchmarks.validate_estimators import reliability_tally
 from fetch_env.env import FoodFetchEnv
 from fetch_env.env_scenes import SCENE_SPACES
 from fetch_env.errors import SimulationDivergedError
@@ -114,22 +115,25 @@ def summary(errs: list[float]) -> dict[str, float]:
             "p95": float(np.percentile(ok, 95)), "max": float(ok.max())}
 
 
-# A scene's estimate is a miss where g1, tau1 or mu is more than MISS off, good where all
-# three are within GOOD (the bars of docs/estimator_validation.md's reliable flag).
-MISS, GOOD = 0.05, 0.02
+def reliable_tally(r: dict[str, Any]) -> dict[str, int] | None:
+    """``info["probe_reliable"]`` against the errors, scene by scene, as the validation
+    harness counts its foods (:func:`benchmarks.validate_estimators.reliability_tally`:
+    misses over 5 % called reliable, scenes within 2 % flagged); None for a run recorded
+    without the flag."""
+    if "reliable" not in r:
+        return None
+    scenes = [{"error": {k: r["errors"][k][i] for k in ("g1", "tau1", "mu")}, "reliable": flag}
+              for i, flag in enumerate(r["reliable"])]
+    return reliability_tally(scenes)
 
 
 def reliable_counts(r: dict[str, Any]) -> str:
-    """``info["probe_reliable"]`` against the errors: the misses called reliable and the
-    good scenes flagged unreliable, as "a of b / c of d" (or "-" for a run without it)."""
-    if "reliable" not in r:
+    """:func:`reliable_tally` as the table's cell, "a of b / c of d" ("-" without it)."""
+    t = reliable_tally(r)
+    if t is None:
         return "-"
-    errs = np.abs(np.array([r["errors"][k] for k in ("g1", "tau1", "mu")], dtype=float))
-    worst = np.where(np.isfinite(errs), errs, np.inf).max(axis=0)  # not identified: a miss
-    flags = np.array(r["reliable"], dtype=bool)
-    miss, good = worst > MISS, worst < GOOD
-    return (f"{int((flags & miss).sum())} of {int(miss.sum())} / "
-            f"{int((~flags & good).sum())} of {int(good.sum())}")
+    return (f"{t['over_5pct_flagged_reliable']} of {t['n_over_5pct']} / "
+            f"{t['under_2pct_flagged_unreliable']} of {t['n_under_2pct']}")
 
 
 def table(results: list[dict[str, Any]]) -> str:

@@ -196,7 +196,7 @@ def summarize(records: list[dict[str, Any]]) -> dict[str, Any]:
             "coverage": float(np.mean(cov)) if cov else math.nan,
             "n_intervals": len(cov),
         }
-    out["reliability"] = _reliability(ok)
+    out["reliability"] = reliability_tally(ok)
     walls = [r["wall_probes"] for r in ok]
     fits = [r["wall_fits"] for r in ok if math.isfinite(r["wall_fits"])]
     out["wall_probes_median"] = float(np.median(walls)) if walls else math.nan
@@ -214,8 +214,9 @@ def summarize(records: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def _reliability(ok: list[dict[str, Any]]) -> dict[str, Any]:
-    """How the ``reliable`` flag sorts the foods by their worst g1 / tau1 / mu error."""
+def reliability_tally(ok: list[dict[str, Any]]) -> dict[str, Any]:
+    """How the ``reliable`` flag sorts the foods (records with ``error`` and ``reliable``)
+    by their worst g1 / tau1 / mu error, a non-finite one counting as a miss."""
     def worst(r: dict[str, Any]) -> float:
         errs = [abs(r["error"][k]) for k in ("g1", "tau1", "mu")]
         return max(errs) if all(math.isfinite(e) for e in errs) else math.inf
@@ -421,9 +422,8 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool, form: str = "li
             if shipped is None:
                 raise SystemExit(f"validate_estimators: no shipped calibration "
                                  f"{calibration_key(fit_set, preset)!r} to set a range on")
-            foods = [(s, z, e) for run in records for s, z, e, _ in _uncalibrated_foods(run)]
             cal = dataclasses.replace(Calibration.from_dict(shipped),
-                                      reference_range=reference_range(foods))
+                                      reference_range=runs_reference_range(records))
         else:
             cal = fit_models(records[0], records, source=source, form=form,
                              coverage=error_coverage(preset),
@@ -548,10 +548,16 @@ def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]
                           diagnostics=[r.get("diagnostics") or {} for r in used], form=form)
     rows = [row for run in runs for i, row in error_rows([r for r in run if use(r)], cal)]
     em = fit_error_model(rows, source=source, coverage=coverage, **(reliability or {}))
-    # where it holds: every food the calibration or its error model was fitted on
-    seen = [(shape, size, est) for shape, size, est, _, _ in rows]
-    seen += [(shape, size, est) for shape, size, est, _ in _uncalibrated_foods(used)]
-    return dataclasses.replace(cal, error_model=em, reference_range=reference_range(seen))
+    return dataclasses.replace(cal, error_model=em, reference_range=runs_reference_range(
+        [[r for r in run if use(r)] for run in runs]))
+
+
+def runs_reference_range(runs: list[list[dict[str, Any]]]) -> dict[str, tuple[float, float]]:
+    """Where a calibration fitted on ``runs`` holds: the reference range
+    (:func:`estimators.calibration.reference_range`) of every food of every run as the
+    probes read it, uncalibrated."""
+    return reference_range([(shape, size, est) for run in runs
+                            for shape, size, est, _ in _uncalibrated_foods(run)])
 
 
 def cross_validate(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],

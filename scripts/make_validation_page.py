@@ -19,7 +19,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.bench_env_estimates import reliable_counts  # noqa: E402
+from benchmarks.bench_env_estimates import reliable_tally  # noqa: E402
 from benchmarks.bench_env_estimates import table as env_table  # noqa: E402
 from benchmarks.probe_twins import table as twins_table  # noqa: E402
 from benchmarks.relaxation_contact import table as contact_table  # noqa: E402
@@ -34,7 +34,6 @@ from benchmarks.validate_estimators import (  # noqa: E402
     summarize,
     table,
 )
-from estimators.calibration import Calibration  # noqa: E402
 from fetch_env.env_scenes import BLOCK_CALIBRATION_SEED  # noqa: E402
 from fetch_env.food_space import REPORTING_SEED, TUNING_SEED  # noqa: E402
 from fetch_env.probes import PROBE_CALIBRATIONS  # noqa: E402
@@ -712,7 +711,6 @@ def stiff_section() -> str:
     loaded = [data for data in map(_committed, STIFF_RUNS) if data]
     if len(loaded) < len(STIFF_RUNS):
         return ""
-    cal = Calibration.from_dict(loaded[0]["meta"]["calibration"])  # the one the runs applied
     lo, hi = (v * 1e-6 for v in loaded[0]["meta"]["young_range"])
     out = [f"## Foods stiffer than the food space ({lo:g}-{hi:g} MPa)\n\n"
            f"The `precise` probes on {loaded[0]['meta']['n']} foods of the food space's "
@@ -732,29 +730,32 @@ def stiff_section() -> str:
         meta, recs = data["meta"], [r for r in data["records"] if "crash" not in r]
         out.append(table(data["summary"], f"stiff set, {meta['n']} foods, seed "
                                           f"{meta['seed']}, noise {meta['noise']:g}"))
-        calibrated = [r for r in recs if r.get("uncalibrated")]
-        inside = [r for r in calibrated if not cal.outside_reference(
-            r["food"]["shape"], r["food"]["size"], r["uncalibrated"])]
+        outside = [r for r in recs if _outside_reference(r)]
+        inside = [r for r in recs if r.get("uncalibrated") and not _outside_reference(r)]
         worst = [max(abs(r["error"][k]) for k in ("g1", "tau1", "mu")) for r in inside]
         young = [r["food"]["young"] * 1e-6 for r in inside]
         within = (f": {min(young):.1f}-{max(young):.1f} MPa, every g1, tau1 and mu within "
                   f"{100 * max(worst):.1f} %, {sum(r['reliable'] for r in inside)} called "
                   "reliable" if inside else "")
-        outside = sum("outside the calibration's reference foods" in " ".join(r["warnings"])
-                      for r in recs)
-        out.append(f"\n{outside} of {len(recs)} foods lie outside the reference foods; "
+        out.append(f"\n{len(outside)} of {len(recs)} foods lie outside the reference foods; "
                    f"{len(inside)} inside{within}.  Command: "
                    f"`{meta['command'].strip()}`.  ![errors](data/validation/"
                    f"{meta['set']}_{meta['preset']}_noise{meta['noise']:g}_errors.png)\n\n")
     return "".join(out)
 
 
+def _outside_reference(record: dict[str, Any]) -> bool:
+    """Whether the probes found a record's food outside their calibration's reference
+    foods (the warning ``fetch_env.probes.apply_calibration`` writes)."""
+    return any("outside the calibration's reference foods" in w for w in record["warnings"])
+
+
 def _misses_called_reliable(results: list[dict[str, Any]]) -> str:
     """How many scenes more than 5 % off the env's reliable flag called reliable, over
     every row of a bench_env_estimates run, in words."""
-    counts = [reliable_counts(r).split(" / ")[0] for r in results if "reliable" in r]
-    called = sum(int(c.split(" of ")[0]) for c in counts)
-    misses = sum(int(c.split(" of ")[1]) for c in counts)
+    tallies = [t for t in map(reliable_tally, results) if t is not None]
+    called = sum(t["over_5pct_flagged_reliable"] for t in tallies)
+    misses = sum(t["n_over_5pct"] for t in tallies)
     return f"of the {misses} scene estimates more than 5 % off, {called} were called reliable"
 
 

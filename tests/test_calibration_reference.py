@@ -181,12 +181,11 @@ def test_the_food_space_flags_are_as_committed(name: str) -> None:
 def test_each_shipped_range_is_that_of_its_committed_tuning_runs(key: str, runs: str) -> None:
     """The shipped ranges are what ``--fit-calibration ... --range-only`` computes from the
     runs each calibration names (no g1 at its fit's bound among them)."""
-    from benchmarks.validate_estimators import _uncalibrated_foods
+    from benchmarks.validate_estimators import runs_reference_range
 
-    foods = [(s, z, e) for nz in ("0", "0.01")
-             for s, z, e, _ in _uncalibrated_foods(_records(f"{runs}_noise{nz}"))]
     shipped = PROBE_CALIBRATIONS[key].reference_range
-    assert shipped == reference_range(foods)
+    assert shipped == runs_reference_range([_records(f"{runs}_noise{nz}")
+                                            for nz in ("0", "0.01")])
     assert shipped is not None and shipped["g1"][1] < 0.99
 
 
