@@ -331,7 +331,10 @@ _COMMON_DOC = """
     its steps at 0.1.  Off (0) on every id, for the same reason as ``fetch_hold_scale``.
     On the same page: with ``fetch_hold_scale=5`` and ``fetch_clamp_speed=0.1`` (the clamp
     speed chosen on tuning scenes) every id's outcomes stay at the chaos floor, for 1.4-1.8x
-    the episodes per core; for training and large evaluations, pass both.
+    the episodes per core; ``fetch_env.quasi_static.quasi_static_kwargs(id)`` gives each
+    id's own setting (0.2 rad/s on Block-v1, Row-v1 and Row-v2: 1.55x, 1.95x and 1.81x),
+    chosen and checked the same way.  For training and large evaluations, pass it
+    (``gym.make(id, **quasi_static_kwargs(id))``, ``food-fetch evaluate --quasi-static``).
 
     ## Version history
     - v3 (0.2.0, TwoRows): two-row plates of any shape (cube, ellipsoid, sphere) and of

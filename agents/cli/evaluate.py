@@ -90,6 +90,18 @@ def _check_env_kwargs(env_id: str, pairs: list[tuple[str, Any]]) -> dict[str, An
     return kwargs
 
 
+def _with_quasi_static(args: argparse.Namespace) -> list[tuple[str, Any]]:
+    """``--env-kwargs``, after the id's validated quasi-static setting where
+    ``--quasi-static`` asks for it (``fetch_env.quasi_static``; a kwarg given overrides it)."""
+    if not args.quasi_static:
+        return list(args.env_kwargs)
+    from fetch_env.quasi_static import quasi_static_kwargs
+
+    given = {k for k, _ in args.env_kwargs}
+    return [(k, v) for k, v in quasi_static_kwargs(args.env).items() if k not in given] + list(
+        args.env_kwargs)
+
+
 def _payload(args: argparse.Namespace, run: _Run, summary: dict[str, Any],
              wall: float) -> dict[str, Any]:
     """The JSON summary of the run (every episode's record with ``--json-episodes``)."""
@@ -286,6 +298,7 @@ def _print_summary(args: argparse.Namespace, run: _Run, summary: Any, wall: floa
           + (f" (search on the first {run.n_search})" if REFERENCE in run.agents
              and run.n_search < args.episodes else "")
           + (f", Ray at {args.ray}" if args.ray else f", {args.workers} worker(s)")
+          + ("".join(f", {k}={v}" for k, v in run.env_kwargs.items()))
           + f", {wall:.1f} s"
           + (f" ({run.from_log} episode(s) from {args.resume})" if args.resume else "")
           + ("  [INTERRUPTED: partial results]" if run.stopped is not None else ""))
@@ -521,7 +534,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
                          f"choose from {', '.join(ids)}")
     check_ray_options("food-fetch evaluate", args)
     datasets = _checked_datasets(args)
-    env_kwargs = _check_env_kwargs(args.env, args.env_kwargs)
+    env_kwargs = _check_env_kwargs(args.env, _with_quasi_static(args))
     agents, describe, files = _checked_agents(args)
     run = _Run(agents, describe, env_kwargs, datasets,
                n_search=min(args.search_episodes or args.episodes, args.episodes))
@@ -560,6 +573,10 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    help="keyword arguments of the environment, values read as JSON where "
                    "they are JSON, else as strings (e.g. fetch_impratio=1000 "
                    "estimator=oracle); checked before any episode runs")
+    p.add_argument("--quasi-static", action="store_true",
+                   help="the id's validated quasi-static holds and slow clamps "
+                   "(fetch_env.quasi_static; --env-kwargs override them): 1.4-2x the "
+                   "episodes per core, outcomes at the simulator's chaos floor")
     p.add_argument("--episodes", type=_episodes, default=20, metavar="N",
                    help=f"episodes (scenes) per agent, 1 to {MAX_EPISODES:,} (default: 20)")
     p.add_argument("--seed", type=seed, default=0, metavar="S",
