@@ -148,10 +148,11 @@ def at_chaos_floor(summary: dict[str, Any], run: str) -> bool:
     as the 1 nm twin's, less one piece, and its reward fell by more than ``REWARD_FALL``
     below the real-time fetch's on at most one scene more than the twin's did (a fetch
     clamped faster than it was asked overshoots its squeeze and crushes more; chance moves
-    a reward either way)."""
+    a reward either way), with no more failed fetches than the twin's."""
     run_s, twin = summary[run], summary["twin"]
     return (run_s["pieces_as_reference"] >= twin["pieces_as_reference"] - 1
-            and run_s["reward_falls"] <= twin["reward_falls"] + 1)
+            and run_s["reward_falls"] <= twin["reward_falls"] + 1
+            and run_s["errors"] <= twin["errors"])
 
 
 def fastest_at_floor(summary: dict[str, Any], runs: Sequence[str]) -> str | None:
@@ -164,8 +165,13 @@ def fastest_at_floor(summary: dict[str, Any], runs: Sequence[str]) -> str | None
 def validated_setting(tuning: dict[str, Any], reporting: dict[str, Any], runs: Sequence[str],
                       fallback: str) -> str:
     """One id's setting: the fastest of ``runs`` at the chaos floor on its ``tuning``
-    summary, kept where it is at the floor on ``reporting`` too (scenes not used to choose),
-    else ``fallback`` (which must be at the floor on both)."""
+    summary, kept where it is at the floor on ``reporting`` too (other scenes), else
+    ``fallback`` (which must be at the floor on both; the next-fastest candidate is not
+    tried, as that would choose on the other scenes)."""
+    for which, s in (("tuning", tuning), ("reporting", reporting)):
+        missing = [r for r in ("twin", fallback) if r not in s]
+        if missing:
+            raise ValueError(f"the {which} runs have no {missing[0]!r}")
     chosen = fastest_at_floor(tuning, runs)
     if chosen is not None and at_chaos_floor(reporting, chosen):
         return chosen
@@ -218,6 +224,8 @@ def _summaries(paths: Sequence[Path]) -> dict[str, dict[str, Any]]:
     for path in paths:
         data = json.loads(path.read_text())
         for env_id, records in data["records"].items():
+            if env_id in out:
+                raise ValueError(f"{env_id} is in more than one of {[str(p) for p in paths]}")
             out[env_id] = summarize(records, ["twin", *data["runs"]])
     return out
 

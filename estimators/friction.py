@@ -182,7 +182,7 @@ def _slide_forces(
         keep = tt >= slide_start
         if keep.sum() < _MIN_SAMPLES:
             raise EstimationError(
-                f"trace too short after slide_start={slide_start:.4g} s: {int(keep.sum())} "
+                f"trace too short after slide_start={float(slide_start):.4g} s: {int(keep.sum())} "
                 f"samples, at least {_MIN_SAMPLES} are needed"
             )
         tt, nl, tl, nr, tgr = tt[keep], nl[keep], tl[keep], nr[keep], tgr[keep]

@@ -574,8 +574,9 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    "they are JSON, else as strings (e.g. fetch_impratio=1000 "
                    "estimator=oracle); checked before any episode runs")
     p.add_argument("--quasi-static", action="store_true",
-                   help="the id's validated quasi-static holds and slow clamps "
-                   "(fetch_env.quasi_static; --env-kwargs override them): 1.4-2x the "
+                   help="the id's quasi-static holds and slow clamps (fetch_env.quasi_static: "
+                   "validated on the -v1 ids, Row-v2 and TwoRows-v3; the other ids get the "
+                   "-v1 ids' common setting; --env-kwargs override them): 1.4-2x the "
                    "episodes per core, outcomes at the simulator's chaos floor")
     p.add_argument("--episodes", type=_episodes, default=20, metavar="N",
                    help=f"episodes (scenes) per agent, 1 to {MAX_EPISODES:,} (default: 20)")
