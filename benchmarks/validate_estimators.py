@@ -413,9 +413,7 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool, form: str = "li
             del held["records"]
             print(table(held, f"{run.name}, 8-fold cross-validation"))
         return 0
-    meta = data[0]["meta"]
-    source = (f"{', '.join(run.name for run in runs)} ({meta['set']} set, seed {meta['seed']}, "
-              f"{meta['n']} foods, preset {preset})")
+    source = calibration_source(runs, data[0]["meta"])
     table_ = json.loads(CALIBRATION_FILE.read_text()) if CALIBRATION_FILE.exists() else {}
     try:
         if range_only:
@@ -436,6 +434,18 @@ def _fit_calibration(runs: list[Path], preset: str, check: bool, form: str = "li
     _write_atomic(CALIBRATION_FILE, json.dumps(table_, indent=1) + "\n")
     print(json.dumps(cal.to_dict(), indent=1))
     return 0
+
+
+def calibration_source(runs: list[Path], meta: dict[str, Any]) -> str:
+    """What a calibration fitted on ``runs`` (the first run's ``meta``) names as its source:
+    the runs' file names, then their set, seed, size and preset (:func:`source_runs`)."""
+    return (f"{', '.join(run.name for run in runs)} ({meta['set']} set, seed {meta['seed']}, "
+            f"{meta['n']} foods, preset {meta['preset']})")
+
+
+def source_runs(source: str) -> list[str]:
+    """The run file names a :func:`calibration_source` names, in order."""
+    return [name.strip() for name in source.partition(" (")[0].split(",")]
 
 
 def error_rows(records: list[dict[str, Any]], calibration: Calibration
@@ -542,21 +552,23 @@ CALIBRATION_FIT: dict[str, dict[str, Any]] = {"env": {"f_scale": 0.03, "trace_fe
 def fit_models(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
                source: str = "", keep: set[int] | None = None, form: str = "linear",
                coverage: float = DEFAULT_ERROR_COVERAGE,
-               reliability: Reliability | None = None, f_scale: float = 0.01,
+               reliability: Reliability | None = None, f_scale: float | None = None,
                trace_features: bool = True) -> Calibration:
     """The calibration of ``form`` fitted on ``cal_records`` (a run without noise; with
     ``f_scale`` and, where ``trace_features``, the traces' diagnostics as
     :func:`estimators.calibration.fit_calibration`'s) and its error model on every run in
-    ``runs`` (e.g. without and with noise), using only foods in ``keep``; ``coverage`` and
+    ``runs`` (e.g. without and with noise), using only foods in ``keep`` (``f_scale`` None:
+    fit_calibration's default); ``coverage`` and
     ``reliability`` (``reliable_half_width``, ``reliable_diagnostics`` and ``noisy``,
     :data:`RELIABILITY`) as :func:`estimators.calibration.fit_error_model`'s."""
     def use(r: dict[str, Any]) -> bool:
         return "crash" not in r and (keep is None or r["food"]["index"] in keep)
 
     used = [r for r in cal_records if use(r)]
-    cal = fit_calibration(_uncalibrated_foods(used), source=source, f_scale=f_scale,
+    cal = fit_calibration(_uncalibrated_foods(used), source=source,
                           diagnostics=([r.get("diagnostics") or {} for r in used]
-                                       if trace_features else None), form=form)
+                                       if trace_features else None), form=form,
+                          **({} if f_scale is None else {"f_scale": f_scale}))
     rows = [row for run in runs for i, row in error_rows([r for r in run if use(r)], cal)]
     em = fit_error_model(rows, source=source, coverage=coverage, **(reliability or {}))
     return dataclasses.replace(cal, error_model=em, reference_range=runs_reference_range(

@@ -27,6 +27,7 @@ from benchmarks.second_clamp import COMBINED  # noqa: E402
 from benchmarks.second_clamp import table as second_clamp_table  # noqa: E402
 from benchmarks.slip_probe import table as slip_table  # noqa: E402
 from benchmarks.validate_estimators import (  # noqa: E402
+    CALIBRATION_FIT,
     RELIABILITY,
     coverage_text,
     cross_validate,
@@ -258,7 +259,8 @@ def cross_validated_runs(stems: tuple[str, ...], form: str = "linear"
     preset = runs[0]["meta"]["preset"]
     held = cross_validate(runs[0]["records"], [r["records"] for r in runs], form=form,
                           coverage=error_coverage(preset),
-                          reliability=RELIABILITY.get(preset))
+                          reliability=RELIABILITY.get(preset),
+                          **CALIBRATION_FIT.get(preset, {}))
     return list(zip(runs, held, strict=True))
 
 
