@@ -19,7 +19,7 @@ import csv
 import shutil
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -56,6 +56,7 @@ class RLlibPlan:
     address: str
     save_freq: int  # fetches between checkpoints (<= 0: only at the end)
     settings: dict[str, Any]
+    env_kwargs: dict[str, Any] = field(default_factory=dict)  # the env's (e.g. quasi-static)
 
 
 def load_settings(algo: str, env_id: str, path: Path | None = None) -> dict[str, Any]:
@@ -109,7 +110,8 @@ def build_config(plan: RLlibPlan) -> Any:
         from ray.rllib.algorithms.sac import SACConfig as Config
     s = plan.settings
     try:
-        config = (Config().environment("food-fetch", env_config={"env_id": plan.env_id})
+        config = (Config().environment("food-fetch", env_config={
+                      "env_id": plan.env_id, "env_kwargs": dict(plan.env_kwargs)})
                   .env_runners(num_env_runners=plan.env_runners, **s.get("env_runners", {}))
                   .training(**s.get("training", {}))
                   .rl_module(model_config=DefaultModelConfig(**s.get("model", {})))
@@ -154,7 +156,8 @@ def _write_config(plan: RLlibPlan, command: list[str]) -> None:
     config = {"backend": "rllib", "algo": plan.algo, "env_id": plan.env_id,
               "timesteps": plan.timesteps, "seed": plan.seed, "env_runners": plan.env_runners,
               "ray_address": plan.address, "save_freq": plan.save_freq,
-              "settings": plan.settings, "command": command,
+              "settings": plan.settings, "env_kwargs": dict(plan.env_kwargs),
+              "command": command,
               "versions": {"ray": ray.__version__, "torch": str(torch.__version__),
                            "python": sys.version.split()[0]}}
     write_atomic(plan.log_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))

@@ -485,8 +485,10 @@ def _plan(algo: str | None, env_id: str, timesteps: int | None, seed: int, log_d
           resume: str | Path | None, hyperparams_file: str | Path | None,
           overrides: dict[str, Any], eval_enabled: bool,
           given: dict[str, int | None] | None = None, overwrite: bool = False,
-          trust_replay_buffer: bool = False) -> _Plan:
-    """Check the whole request; reads files, writes none."""
+          trust_replay_buffer: bool = False, quasi_static: bool = False) -> _Plan:
+    """Check the whole request; reads files, writes none.  ``quasi_static``: the env's
+    validated quasi-static setting under the hyperparameters' ``env_kwargs``
+    (:func:`fetch_env.quasi_static.quasi_static_kwargs`; a kwarg they give wins)."""
     ids = env_ids()
     if env_id not in ids:
         raise TrainError(f"unknown environment id {env_id!r}; choose from {', '.join(ids)}")
@@ -499,6 +501,12 @@ def _plan(algo: str | None, env_id: str, timesteps: int | None, seed: int, log_d
     overrides = dict(overrides)
     legacy = {k: overrides.pop(k) for k in LEGACY if k in overrides}
     hp = load_hyperparams(algo, env_id, hyperparams_file, overrides)
+    if quasi_static:
+        from fetch_env.quasi_static import quasi_static_kwargs
+
+        given_kwargs = hp.get("env_kwargs")
+        hp["env_kwargs"] = {**quasi_static_kwargs(env_id),
+                            **(given_kwargs if isinstance(given_kwargs, dict) else {})}
     run = {k: hp.pop(k) for k in RUN_KEYS if k in hp}
     ctor = hp
     source = str(hyperparams_file or hyperparams_path(algo))
@@ -673,7 +681,8 @@ def train(algo: str | None, env_id: str, timesteps: int | None, seed: int,
           progress: bool = True, threads: int = 1, verbose: int = 0, eval_enabled: bool = True,
           command: list[str] | None = None, eval_freq: int | None = None,
           n_eval_episodes: int | None = None, save_freq: int | None = None,
-          overwrite: bool = False, trust_replay_buffer: bool = False) -> Path:
+          overwrite: bool = False, trust_replay_buffer: bool = False,
+          quasi_static: bool = False) -> Path:
     """Train and save ``log_dir/model.zip``; returns its path.
 
     ``algo`` None: the checkpoint's algorithm when resuming, else PPO.  ``timesteps`` is the
@@ -682,7 +691,9 @@ def train(algo: str | None, env_id: str, timesteps: int | None, seed: int,
     ``n_steps x n_envs`` steps, so it may stop up to one rollout past the budget.
     ``eval_freq`` and ``save_freq`` (steps; <= 0: off) default to a quarter of the budget,
     ``n_eval_episodes`` to 20; ``overrides`` may also give them as ``eval_freq``,
-    ``n_eval_episodes`` and ``checkpoint_freq``.
+    ``n_eval_episodes`` and ``checkpoint_freq``.  ``quasi_static``: train on the env's
+    validated quasi-static setting (:mod:`fetch_env.quasi_static`; ``env_kwargs`` given in
+    the hyperparameters override it), recorded with them in config.yml.
 
     ``log_dir`` is locked for the run (TrainError if another run holds it); a ``log_dir``
     holding an earlier run is refused unless ``resume`` continues it or ``overwrite`` replaces
@@ -697,7 +708,7 @@ def train(algo: str | None, env_id: str, timesteps: int | None, seed: int,
     given = {"eval_freq": eval_freq, "n_eval_episodes": n_eval_episodes, "save_freq": save_freq}
     plan = _plan(algo, env_id, timesteps, seed, log_dir, resume, hyperparams_file,
                  dict(overrides or {}), eval_enabled, given, overwrite=overwrite,
-                 trust_replay_buffer=trust_replay_buffer)
+                 trust_replay_buffer=trust_replay_buffer, quasi_static=quasi_static)
     torch.set_num_threads(max(1, int(threads)))
     env, model, eval_env = _build(plan, verbose, eval_enabled)
     # Only now, with everything checked and built, does the log dir change.

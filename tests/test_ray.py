@@ -246,9 +246,14 @@ def test_rllib_ppo_trains_checkpoints_and_its_policy_evaluates(tmp_path: Path) -
     (tmp_path / "tiny.yml").write_text(TINY.format(env=env_id))
     code, _out, err = _run(_cli("train", "--backend", "rllib", "--algo", "ppo", "--env", env_id,
                                "--hyperparams-file", "tiny.yml", "--log-dir", "run",
-                               "--no-progress"), tmp_path)
+                               "--no-progress", "--quasi-static"), tmp_path)
     assert code == 0, err
     run = tmp_path / "run"
+    import yaml
+
+    # --quasi-static: the env kwargs the env runners made the env with (fetch_env.quasi_static)
+    assert yaml.safe_load((run / "config.yml").read_text())["env_kwargs"] == {
+        "fetch_hold_scale": 5.0, "fetch_clamp_speed": 0.1}
     rows = (run / "progress.csv").read_text().splitlines()
     assert rows[0].startswith("iteration,steps") and int(rows[-1].split(",")[1]) >= 32
     ckpts = sorted(p.name for p in (run / "checkpoints").iterdir())

@@ -310,3 +310,21 @@ def test_resume_without_env_continues_on_the_checkpoints_env(
     assert code == 0, err
     assert yaml.safe_load((log2 / "config.yml").read_text())["env"] == "FoodFetch-Block-v1"
     assert "--env FoodFetch-Block-v1" in out
+
+
+def test_quasi_static_trains_on_the_ids_setting(tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """--quasi-static puts the id's validated setting (fetch_env.quasi_static) under the
+    hyperparameters' env_kwargs, whose own values win, and config.yml records them."""
+    from fetch_env.quasi_static import quasi_static_kwargs
+
+    log = tmp_path / "qs"
+    code, _, err = run_cli(["train", "--algo", "ppo", "--timesteps", "8", "--seed", "1",
+                            "--log-dir", str(log), "--no-progress", "--no-eval",
+                            "--quasi-static", "--hyperparams", "n_steps=8", "batch_size=8",
+                            "n_epochs=1", "env_kwargs={fetch_clamp_speed: 0.1}"], capsys)
+    assert code == 0, err
+    cfg = yaml.safe_load((log / "config.yml").read_text())
+    assert quasi_static_kwargs(DEFAULT_ENV)["fetch_clamp_speed"] != 0.1
+    assert cfg["hyperparams"]["env_kwargs"] == {"fetch_hold_scale": 5.0,
+                                                "fetch_clamp_speed": 0.1}

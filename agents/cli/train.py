@@ -73,7 +73,7 @@ def _cmd_train_rllib(args: argparse.Namespace) -> int:
         timesteps = args.timesteps or int(settings.get("n_timesteps", 1000))
         save_freq = args.save_freq if args.save_freq is not None else max(timesteps // 4, 1)
         plan = RLlibPlan(algo, args.env, timesteps, args.seed, args.log_dir, args.env_runners,
-                         address, save_freq, settings)
+                         address, save_freq, settings, _quasi_static(args))
         policy = train_rllib(plan, overwrite=args.overwrite, progress=not args.no_progress,
                              command=["food-fetch", *sys.argv[1:]])
     except (TrainError, RaySetupError) as exc:
@@ -85,6 +85,15 @@ def _cmd_train_rllib(args: argparse.Namespace) -> int:
     print(f"checkpoints       {args.log_dir / 'checkpoints'}")
     print(f"evaluate with     food-fetch evaluate --agent {policy} --env {args.env}")
     return 0
+
+
+def _quasi_static(args: argparse.Namespace) -> dict[str, float]:
+    """The env kwargs ``--quasi-static`` asks for (none without it)."""
+    if not args.quasi_static:
+        return {}
+    from fetch_env.quasi_static import quasi_static_kwargs
+
+    return quasi_static_kwargs(args.env)
 
 
 def _resumed_env(checkpoint: str) -> str | None:
@@ -130,7 +139,8 @@ def cmd_train(args: argparse.Namespace) -> int:
                     verbose=args.verbose, eval_enabled=not args.no_eval,
                     command=["food-fetch", *sys.argv[1:]], eval_freq=args.eval_freq,
                     n_eval_episodes=args.eval_episodes, save_freq=args.save_freq,
-                    overwrite=args.overwrite, trust_replay_buffer=args.trust_replay_buffer)
+                    overwrite=args.overwrite, trust_replay_buffer=args.trust_replay_buffer,
+                    quasi_static=args.quasi_static)
     except TrainError as exc:
         raise UsageError(f"food-fetch train: {exc}") from None
     except TrainStopped as exc:  # the checkpoint is saved: one line and the signal's code
@@ -168,6 +178,11 @@ def add_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--env", default=None, metavar="ID",
                    help=f"environment id: {ENV_HELP} (default: {DEFAULT_ENV}; with --resume, "
                    "the env of the checkpoint's run, from its config.yml)")
+    p.add_argument("--quasi-static", action="store_true",
+                   help="train on the id's quasi-static holds and slow clamps "
+                   "(fetch_env.quasi_static; env_kwargs in the hyperparameters override "
+                   "them): 1.4-2x the fetches per core, outcomes at the simulator's chaos "
+                   "floor; evaluate the model on the plain id")
     p.add_argument("--timesteps", type=positive_int, default=None, metavar="N",
                    help="total environment steps (= fetches); default: n_timesteps of the "
                    "YAML. With --resume, N counts the checkpoint's steps too: it trains N "
