@@ -504,9 +504,9 @@ def _plan(algo: str | None, env_id: str, timesteps: int | None, seed: int, log_d
     if quasi_static:
         from fetch_env.quasi_static import quasi_static_kwargs
 
-        given_kwargs = hp.get("env_kwargs")
-        hp["env_kwargs"] = {**quasi_static_kwargs(env_id),
-                            **(given_kwargs if isinstance(given_kwargs, dict) else {})}
+        given_kwargs = hp.get("env_kwargs") or {}
+        if isinstance(given_kwargs, dict):  # (anything else: refused by name below)
+            hp["env_kwargs"] = {**quasi_static_kwargs(env_id), **given_kwargs}
     run = {k: hp.pop(k) for k in RUN_KEYS if k in hp}
     ctor = hp
     source = str(hyperparams_file or hyperparams_path(algo))

@@ -86,11 +86,18 @@ def run_name(run: Run) -> str:
     return f"x{scale:g}" + (f"c{clamp:g}" if clamp else "")
 
 
+def run_kwargs(name: str) -> dict[str, float]:
+    """A run's key (:func:`run_name`) as env kwargs."""
+    scale, _, clamp = name[1:].partition("c")
+    return {"fetch_hold_scale": float(scale), "fetch_clamp_speed": float(clamp or 0.0)}
+
+
 def run_label(name: str) -> str:
     """The page's words for a run's key."""
-    scale, _, clamp = name[1:].partition("c")
-    parts = [f"hold scale {scale}"] if scale != "1" else []
-    parts += [f"slow clamps run at {clamp} rad/s"] if clamp else []
+    run = run_kwargs(name)
+    scale, clamp = run["fetch_hold_scale"], run["fetch_clamp_speed"]
+    parts = [f"hold scale {scale:g}"] if scale != 1 else []
+    parts += [f"slow clamps run at {clamp:g} rad/s"] if clamp else []
     return ", ".join(parts)
 
 
@@ -178,12 +185,6 @@ def validated_setting(tuning: dict[str, Any], reporting: dict[str, Any], runs: S
     if not (at_chaos_floor(tuning, fallback) and at_chaos_floor(reporting, fallback)):
         raise ValueError(f"the fallback {fallback} is not at the chaos floor")
     return fallback
-
-
-def run_kwargs(name: str) -> dict[str, float]:
-    """A run's key (:func:`run_name`) as env kwargs."""
-    scale, _, clamp = name[1:].partition("c")
-    return {"fetch_hold_scale": float(scale), "fetch_clamp_speed": float(clamp or 0.0)}
 
 
 def page(data: dict[str, Any]) -> str:

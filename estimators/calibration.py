@@ -448,8 +448,7 @@ class Calibration:
         if self.error_model is not None:
             out["error_model"] = self.error_model.to_dict()
         if self.reference_range is not None:
-            out["reference_range"] = {q: list(map(float, b))
-                                      for q, b in self.reference_range.items()}
+            out["reference_range"] = {q: list(b) for q, b in self.reference_range.items()}
         return out
 
     @classmethod
