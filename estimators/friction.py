@@ -23,9 +23,10 @@ from scipy.stats import t as student_t
 
 from estimators.errors import EstimationError, check_traces, optional_real, real
 
-__all__ = ["FrictionEstimate", "estimate_friction"]
+__all__ = ["MIN_SAMPLES", "FrictionEstimate", "estimate_friction"]
 
-_MIN_SAMPLES = 20
+# the fewest samples of a slide (from slide_start on) that the plateau test reads
+MIN_SAMPLES = 20
 
 
 @dataclass
@@ -170,7 +171,7 @@ def _slide_forces(
     """Checked force magnitudes, cut to ``t >= slide_start`` (signs carry no information)."""
     tt, tr = check_traces(
         t,
-        min_samples=_MIN_SAMPLES,
+        min_samples=MIN_SAMPLES,
         normal_left=normal_left,
         tangential_left=tangential_left,
         normal_right=normal_right,
@@ -180,10 +181,10 @@ def _slide_forces(
     nr, tgr = np.abs(tr["normal_right"]), np.abs(tr["tangential_right"])
     if slide_start is not None:
         keep = tt >= slide_start
-        if keep.sum() < _MIN_SAMPLES:
+        if keep.sum() < MIN_SAMPLES:
             raise EstimationError(
                 f"trace too short after slide_start={float(slide_start):.4g} s: {int(keep.sum())} "
-                f"samples, at least {_MIN_SAMPLES} are needed"
+                f"samples, at least {MIN_SAMPLES} are needed"
             )
         tt, nl, tl, nr, tgr = tt[keep], nl[keep], tl[keep], nr[keep], tgr[keep]
     return _SlideForces(tt, nl, tl, nr, tgr, nl + nr, tl + tgr)
@@ -230,7 +231,7 @@ def _ratio_noise(
     rounding for noise-free traces.
     """
     rv = ratio[valid]
-    if rv.size < _MIN_SAMPLES:
+    if rv.size < MIN_SAMPLES:
         raise EstimationError(
             f"normal force ~0 in the slip window: only {rv.size} samples have normal force "
             f"above max(5 % of its maximum {n_scale:.3g} N, min_normal)"

@@ -9,9 +9,14 @@ first on synthetic traces whose mu is known exactly, then on simulated cubes.
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+from benchmarks import validate_estimators as ve
+from estimators.friction import MIN_SAMPLES
 from fetch_env.controller import PHASE_CODE, FetchAction, SimResult
 from fetch_env.errors import InvalidParameterError
 from fetch_env.food_space import Food, sample_foods
@@ -26,6 +31,8 @@ from fetch_env.probes import (
 )
 
 MU = 0.3
+VALIDATION_RUN = (Path(__file__).resolve().parents[1] / "docs" / "data" / "validation"
+                  / "tuning_env_uncal_noise0.01.json")
 N_SLIDE = 40
 
 
@@ -281,3 +288,31 @@ def test_the_noise_taken_off_widens_mu_s_interval() -> None:
         assert 0.015 < noisy["sd_noise_mu"] < 0.06, noisy["sd_noise_mu"]
         covered += lo <= MU <= hi
     assert covered == 300
+
+
+def test_a_slide_too_short_for_the_plateau_test_reads_its_envelope_without_a_warning() -> None:
+    """A steady slide of fewer samples than ``estimate_friction`` reads (the env's 0.15 s at
+    a 10 ms step has 15) is read from its envelope, its designed reading: mu within 1e-12 of
+    the steady ratio and no warning (a warning on every env reset hid the ones that
+    matter)."""
+    n = MIN_SAMPLES - 5
+    mu, warns, (low, high) = estimate_mu(synthetic_slip(np.full(n, MU), np.full(n, MU)))
+    np.testing.assert_allclose(mu, MU, rtol=1e-12)
+    assert warns == []
+    assert low < MU < high
+
+
+def test_the_env_probe_reads_mu_as_its_committed_run_did() -> None:
+    """The env probes' slides are too short for the plateau test: mu is the committed
+    harness run's to 1e-12 on its first two tuning foods (1 % noise, uncalibrated), and
+    the slip probe's warnings are the run's less the short trace's."""
+    run = json.loads(VALIDATION_RUN.read_text())
+    for record in run["records"][:2]:
+        food = Food(**record["food"])
+        now = ve.measure(food, "env", 0.01, ve.food_seed(food), calibrate=False)
+        np.testing.assert_allclose(now["estimate"]["mu"], record["estimate"]["mu"],
+                                   rtol=1e-12)
+        def slip_warnings(warnings: list[str]) -> list[str]:
+            return [w for w in warnings if w.startswith("slip probe:")]
+        assert slip_warnings(now["warnings"]) == [
+            w for w in slip_warnings(record["warnings"]) if "trace too short" not in w]

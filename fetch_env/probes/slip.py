@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from estimators import EstimationError, estimate_friction
+from estimators.friction import MIN_SAMPLES as FRICTION_MIN_SAMPLES
 from estimators.uncertainty import Z95, log_interval
 from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator, SimResult
 from fetch_env.errors import SimulationDivergedError, require
@@ -192,19 +193,7 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
                      "forces' envelope")
     env, noise_share = ((float(np.quantile(ratio, ENVELOPE_QUANTILE)), 0.0)
                         if per_blade is None else per_blade)
-    est = None
-    try:
-        est = estimate_friction(tr["t"], *(f[k] for k in keys),
-                                slide_start=float(tr["t"][slide][0]))
-        plateau = float(est.mu)
-        if by_blade and est.mu_left > 0 and est.mu_right > 0:
-            plateau = min(float(est.mu_left), float(est.mu_right))
-        warns += list(est.warnings)
-    except (EstimationError, ArithmeticError) as exc:
-        # Its plateau test is strict for a short slide (the ratio drifts by ~1 % as the
-        # normal force relaxes).
-        plateau = math.nan
-        warns.append(f"estimate_friction: {exc}; mu from the ratio's envelope")
+    plateau, est = _plateau(tr["t"], f, keys, float(tr["t"][slide][0]), by_blade, warns)
     # Read at the slipping level (noise present), the envelope is already the level a
     # steady slide sits at, from the same samples as the plateau, so the plateau is no
     # second reading (on the 256 tuning foods with 1 % noise letting it override moved mu's
@@ -227,6 +216,29 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
         diagnostics.update(_mu_diagnostics(mu, est, env, ratio, float(grip.mean()),
                                            noise_share))
     return mu, warns, log_interval(mu, sd)
+
+
+def _plateau(t: np.ndarray, f: dict[str, np.ndarray], keys: tuple[str, ...],
+             slide_start: float, by_blade: bool, warns: list[str]) -> tuple[float, Any]:
+    """``estimate_friction``'s plateau of the slide (the lower half-spoon's where
+    ``by_blade``) and its estimate, or NaN and None where it gives none (why, in ``warns``).
+    A slide with fewer samples than its plateau test reads (``MIN_SAMPLES``; the env's
+    0.15 s slide at a 10 ms step has 15) is read from its envelope alone, as it was designed
+    to be, without a warning."""
+    if int(np.count_nonzero(t >= slide_start)) < FRICTION_MIN_SAMPLES:
+        return math.nan, None
+    try:
+        est = estimate_friction(t, *(f[k] for k in keys), slide_start=slide_start)
+    except (EstimationError, ArithmeticError) as exc:
+        # Its plateau test is strict for a short slide (the ratio drifts by ~1 % as the
+        # normal force relaxes).
+        warns.append(f"estimate_friction: {exc}; mu from the ratio's envelope")
+        return math.nan, None
+    warns += list(est.warnings)
+    plateau = float(est.mu)
+    if by_blade and est.mu_left > 0 and est.mu_right > 0:
+        plateau = min(float(est.mu_left), float(est.mu_right))
+    return plateau, est
 
 
 def _extrapolated(f: dict[str, np.ndarray], late: np.ndarray, keys: tuple[str, ...],
