@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from estimators import EstimationError, estimate_friction
+from estimators import EstimationError, FrictionEstimate, estimate_friction
 from estimators.friction import MIN_SAMPLES as FRICTION_MIN_SAMPLES
 from estimators.uncertainty import Z95, log_interval
 from fetch_env.controller import PHASE_CODE, FetchAction, FetchSimulator, SimResult
@@ -219,7 +219,8 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
 
 
 def _plateau(t: np.ndarray, f: dict[str, np.ndarray], keys: tuple[str, ...],
-             slide_start: float, by_blade: bool, warns: list[str]) -> tuple[float, Any]:
+             slide_start: float, by_blade: bool, warns: list[str]
+             ) -> tuple[float, FrictionEstimate | None]:
     """``estimate_friction``'s plateau of the slide (the lower half-spoon's where
     ``by_blade``) and its estimate, or NaN and None where it gives none (why, in ``warns``).
     A slide with fewer samples than its plateau test reads (``MIN_SAMPLES``; the env's
