@@ -12,7 +12,8 @@ cost is the median of its timings; the raw maximum and every timing are kept bes
 
 Each pass must give the same estimates, and, with ``--check-against``, the estimates the
 harness committed for those foods (``benchmarks/validate_estimators.py``): the timed fits
-are the measured ones.
+are the measured ones.  They are compared bit for bit where numpy dispatches the kernels the
+committed runs were written with, and to 2 % elsewhere (``benchmarks/reproducibility.py``).
 
     python benchmarks/bench_fits.py --set reporting --n 64 --preset precise --noise 0 0.01 \\
         --repeats 5 --workers 2 --check-against docs/data/validation --out docs/data/bench_fits.json
@@ -34,6 +35,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.readme_meta import meta, write_json
+from benchmarks.reproducibility import committed_rtol, kernels_note
 from benchmarks.validate_estimators import SETS, SPEED_BARS, food_seed, foods_of
 from fetch_env.food_space import Food
 from fetch_env.parallel import WorkerLostError, run_ahead, stop_exit_code, stop_on_signals
@@ -83,15 +85,9 @@ def time_fits(foods: list[Food], runs: list[ProbeRuns], preset: str, noise: floa
             timings[p, j], est = fit_once(food, r, preset, noise)
             if p == 0:
                 first.append(est)
-            elif not _same(est, first[j]):
+            elif not _close(est, first[j], 0.0):
                 differing += 1
     return timings, first, differing
-
-
-def _same(a: dict[str, float], b: dict[str, float]) -> bool:
-    """Equal estimates, NaN equal to NaN."""
-    return a.keys() == b.keys() and all(
-        a[k] == b[k] or (math.isnan(a[k]) and math.isnan(b[k])) for k in a)
 
 
 def committed_path(directory: Path, set_name: str, preset: str, noise: float) -> Path:
@@ -99,11 +95,18 @@ def committed_path(directory: Path, set_name: str, preset: str, noise: float) ->
     return directory / f"{set_name}_{preset}_noise{noise:g}.json"
 
 
+def _close(a: dict[str, float], b: dict[str, float], rtol: float) -> bool:
+    """Estimates equal to a relative ``rtol`` (0: bit for bit), NaN equal to NaN."""
+    return a.keys() == b.keys() and all(
+        abs(a[k] - b[k]) <= rtol * abs(b[k]) or (math.isnan(a[k]) and math.isnan(b[k]))
+        for k in a)
+
+
 def committed_mismatches(directory: Path, set_name: str, preset: str, noise: float,
-                         foods: list[Food], estimates: list[dict[str, float]]
-                         ) -> tuple[int, list[int]]:
-    """(foods compared, indices whose estimates differ) against the harness's committed
-    records of these foods."""
+                         foods: list[Food], estimates: list[dict[str, float]],
+                         rtol: float = 0.0) -> tuple[int, list[int]]:
+    """(foods compared, indices whose estimates differ by more than ``rtol``) against the
+    harness's committed records of these foods."""
     path = committed_path(directory, set_name, preset, noise)
     by_index = {r["food"]["index"]: r for r in json.loads(path.read_text())["records"]}
     compared, differ = 0, []
@@ -112,7 +115,7 @@ def committed_mismatches(directory: Path, set_name: str, preset: str, noise: flo
         if rec is None or "estimate" not in rec:
             continue
         compared += 1
-        if not _same(est, {k: float(v) for k, v in rec["estimate"].items()}):
+        if not _close(est, {k: float(v) for k, v in rec["estimate"].items()}, rtol):
             differ.append(food.index)
     return compared, differ
 
@@ -201,7 +204,9 @@ def _run(args: argparse.Namespace) -> int:
         entry.update(passes_differing=differing, timings_s=timings.tolist())
         if args.check_against is not None:
             entry["committed_compared"], entry["committed_differing"] = committed_mismatches(
-                args.check_against, args.set_name, args.preset, noise, foods, estimates)
+                args.check_against, args.set_name, args.preset, noise, foods, estimates,
+                committed_rtol())
+            entry["committed_rtol"] = committed_rtol()
         result["fits"][f"{noise:g}"] = entry
         print(_line(noise, entry, len(foods), args.repeats), flush=True)
     result["meta"]["wall_s"] = round(time.perf_counter() - start, 1)
@@ -217,7 +222,8 @@ def _line(noise: float, e: dict[str, Any], n: int, repeats: int) -> str:
     check = ""
     if "committed_compared" in e:
         same = e["committed_compared"] - len(e["committed_differing"])
-        check = f"; estimates as committed on {same} of {e['committed_compared']} foods"
+        check = (f"; estimates as committed on {same} of {e['committed_compared']} foods "
+                 f"({kernels_note()})")
     return (f"fits, noise {noise:g}, CPU ms a food (median of {repeats}): median "
             f"{1e3 * e['median']:.1f}, 95th pct {1e3 * e['p95']:.1f}, max {1e3 * e['max']:.1f} "
             f"(food {e['slowest_food']}), {e['over_bar']} of {n} over "

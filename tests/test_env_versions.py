@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import fetch_env
+from benchmarks.reproducibility import committed_rtol
 from fetch_env import food_space
 from fetch_env.env import VERSION_DEFAULTS, physical_to_action
 from fetch_env.env_scenes import (
@@ -47,9 +48,11 @@ def test_v0_ids_give_the_numbers_they_gave_before_v1(env_id: str) -> None:
     env = gym.make(env_id)
     for row in REFERENCE[env_id]:
         obs, _ = env.reset(seed=row["seed"])
-        # The observations are the probes' fits (numpy/scipy): one float32 ulp apart across
-        # CPUs (rel 1.0e-7 on AMD EPYC against this Intel Xeon reference); the outcomes exact.
-        np.testing.assert_allclose(obs, np.array(row["obs"], np.float32), rtol=1e-6, atol=1e-7)
+        # The observations are the probes' fits (numpy/scipy): one float32 ulp apart where
+        # numpy dispatches the reference's kernels (rel 1.0e-7 on AMD EPYC against this Intel
+        # Xeon reference), within OTHER_KERNELS_RTOL elsewhere; the outcomes exact.
+        rtol = committed_rtol(same_kernels=1e-6)
+        np.testing.assert_allclose(obs, np.array(row["obs"], np.float32), rtol=rtol, atol=1e-7)
         _, reward, _, _, info = env.step(np.array(row["action"], np.float32))
         assert reward == row["reward"]
         assert info["fetch_rate"] == row["fetch_rate"]

@@ -370,9 +370,11 @@ def _projected_rss(s: np.ndarray, y: np.ndarray, lam: float) -> float:
 def test_decay_line_fit_is_the_least_squares_minimum(seed: int) -> None:
     """The variable-projection fit of an exponential plus a line lands on the minimum: its
     residual is no more than that of any rate on a dense grid (1e-9 relative), and it is
-    Levenberg-Marquardt's converged fit (rate and parameters to 1e-6, standard errors to
+    Levenberg-Marquardt's converged fit (rate and parameters to 1e-5, standard errors to
     1e-4) on these creeping holds, where the bounded trust-region solver may run out of
-    evaluations (seed 0).  (Seed 3's best rate is at the search's edge: see the next test.)"""
+    evaluations (seed 0).  (Seed 3's best rate is at the search's edge: see the next test.)
+    The two solvers stop within their tolerances of each other: at most 6.6e-7 apart with
+    numpy's AVX-512 kernels, 2.0e-6 (seed 0's intercept) with its AVX2 ones."""
     from estimators.relaxation import (
         _exp_drift_jac,
         _exp_drift_model,
@@ -387,7 +389,7 @@ def test_decay_line_fit_is_the_least_squares_minimum(seed: int) -> None:
     assert best <= dense * (1.0 + 1e-9)
     lm = _lm_decay(_exp_drift_model, _exp_drift_jac, s, y, (0.02, 0.01, 0.2, 0.0))
     assert lm is not None
-    assert_allclose(popt, lm[0], rtol=1e-6, atol=1e-9)
+    assert_allclose(popt, lm[0], rtol=1e-5, atol=1e-9)
     assert_allclose(np.sqrt(np.diag(pcov)), np.sqrt(np.diag(lm[1])), rtol=1e-4)
 
 

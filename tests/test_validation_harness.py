@@ -16,6 +16,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.stats import beta
 
+from benchmarks.reproducibility import OTHER_KERNELS_RTOL, kernels_match_committed
 from benchmarks.validate_estimators import (
     _speed_line,
     calibrate,
@@ -38,14 +39,24 @@ REPORTS = {preset: json.loads((DATA / f"reporting_{preset}_noise0.json").read_te
                                                ("measure", 3)])
 def test_reporting_foods_measure_as_committed(preset: str, index: int) -> None:
     """Same food, same probes: the same estimates and intervals as the committed run (the
-    harness is deterministic), every estimate found, and the truth inside the g1 and mu
-    intervals wherever the committed run had it there."""
+    harness is deterministic: to 1e-6 where numpy's kernels are the committed run's, to
+    ``OTHER_KERNELS_RTOL`` of the estimate elsewhere), every estimate found, and the truth
+    inside the g1 and mu intervals wherever the committed run had it there."""
     food = foods_of("reporting", 64)[index]
     rec = measure(food, preset, 0.0, food_seed(food))
     old = next(r for r in REPORTS[preset]["records"] if r["food"]["index"] == index)
+    same = kernels_match_committed()
     for k in PARAM_NAMES:
-        assert_allclose(rec["estimate"][k], old["estimate"][k], rtol=1e-6, err_msg=k)
-        assert_allclose(rec["interval"][k], old["interval"][k], rtol=1e-6, err_msg=k)
+        assert_allclose(rec["estimate"][k], old["estimate"][k],
+                        rtol=1e-6 if same else OTHER_KERNELS_RTOL, err_msg=k)
+        if same:
+            assert_allclose(rec["interval"][k], old["interval"][k], rtol=1e-6, err_msg=k)
+        elif np.ptp(old["interval"][k]) < abs(old["estimate"][k]):
+            # where kernels differ, a bound to that share of the estimate (measured: 1.1 %);
+            # an interval wider than its estimate (K2 of `measure` food 1: 8.6 times) says the
+            # parameter is not identified, and its bounds move by a fifth of the width
+            assert_allclose(rec["interval"][k], old["interval"][k], rtol=0.0,
+                            atol=OTHER_KERNELS_RTOL * abs(old["estimate"][k]), err_msg=k)
     assert rec["covered"]["g1"] and rec["covered"]["mu"]
     # within the reporting runs' largest misses (g1 17.3 % with `measure`, mu 12.2 %)
     assert abs(rec["error"]["g1"]) < 0.174 and abs(rec["error"]["mu"]) < 0.123
