@@ -98,8 +98,8 @@ def committed_path(directory: Path, set_name: str, preset: str, noise: float) ->
 def _close(a: dict[str, float], b: dict[str, float], rtol: float) -> bool:
     """Estimates equal to a relative ``rtol`` (0: bit for bit), NaN equal to NaN."""
     return a.keys() == b.keys() and all(
-        abs(a[k] - b[k]) <= rtol * abs(b[k]) or (math.isnan(a[k]) and math.isnan(b[k]))
-        for k in a)
+        a[k] == b[k] or abs(a[k] - b[k]) <= rtol * abs(b[k])
+        or (math.isnan(a[k]) and math.isnan(b[k])) for k in a)
 
 
 def committed_mismatches(directory: Path, set_name: str, preset: str, noise: float,
