@@ -203,10 +203,10 @@ def _run(args: argparse.Namespace) -> int:
         entry["slowest_food"] = foods[entry.pop("slowest_position")].index
         entry.update(passes_differing=differing, timings_s=timings.tolist())
         if args.check_against is not None:
+            entry["committed_rtol"] = committed_rtol()
             entry["committed_compared"], entry["committed_differing"] = committed_mismatches(
                 args.check_against, args.set_name, args.preset, noise, foods, estimates,
-                committed_rtol())
-            entry["committed_rtol"] = committed_rtol()
+                entry["committed_rtol"])
         result["fits"][f"{noise:g}"] = entry
         print(_line(noise, entry, len(foods), args.repeats), flush=True)
     result["meta"]["wall_s"] = round(time.perf_counter() - start, 1)

@@ -14,8 +14,8 @@ foods the tests re-measure by at most 0.72 % (B and tau1; K1 0.22 %, g1 0.15 %, 
 all), the bounds of every interval narrower than its estimate by at most 1.1 % of the
 estimate (a K2 that one clamp leaves unidentified, its interval 8.6 times its estimate, by
 1.8 times it), and FoodFetch-Block-v0's observations by at most 0.60 %, with every outcome
-(reward, fetch rate) the same.  The
-simulation itself (MuJoCo) does not use numpy's kernels and is the same on both.
+(reward, fetch rate) the same.  The simulation itself (MuJoCo) does not use numpy's kernels
+and is the same on both.
 """
 
 from __future__ import annotations
