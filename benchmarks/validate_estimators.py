@@ -34,6 +34,7 @@ import functools
 import json
 import math
 import os
+import pickle
 import platform
 import signal
 import sys
@@ -83,9 +84,11 @@ from fetch_env.probes import (
     PROBE_SYSTEMATIC_SD,
     ProbeConfig,
     ProbeOutcome,
+    ProbeRuns,
     apply_calibration,
     run_probes,
     scene_calibration_key,
+    simulate_probes,
     true_parameters_exact,
 )
 from fetch_env.scene import Geometry
@@ -123,20 +126,30 @@ def food_seed(food: Food) -> int:
 
 
 def measure(food: Food, preset: str, noise: float, seed: int, calibrate: bool = True,
-            config: ProbeConfig | None = None, geometry: Geometry | None = None
-            ) -> dict[str, Any]:
+            config: ProbeConfig | None = None, geometry: Geometry | None = None,
+            simulations: str | None = None) -> dict[str, Any]:
     """Probe one food and hold the estimates to the truth (never raises); ``calibrate``
     applies the preset's shipped calibration, where it has one; ``config`` replaces the
     preset's probe settings (then leave ``calibrate`` off: a calibration holds only for the
-    settings it was fitted for), ``geometry`` the end-effector's default."""
+    settings it was fitted for), ``geometry`` the end-effector's default.
+
+    ``simulations``: a folder that keeps each food's probe simulations and truth
+    (:func:`stored_simulations`), so that runs of the same foods and settings with other
+    noise or calibration fit them again instead of simulating again; the record's probe
+    times then add the stored simulations' own."""
     config = PROBE_PRESETS[preset] if config is None else config
     piece = food.piece()
     calibration = PROBE_CALIBRATIONS.get(preset) if calibrate else None
     t0 = time.perf_counter()
+    sim_wall = sim_cpu = 0.0
     try:
+        runs = truth = None
+        if simulations is not None:
+            runs, truth, sim_wall, sim_cpu = stored_simulations(Path(simulations), food,
+                                                                config, geometry)
         out = run_probes((piece,), config, geometry, noise=noise, seed=seed,
-                         calibration=calibration)
-        truth = true_parameters_exact(piece, config, geometry)
+                         calibration=calibration, runs=runs)
+        truth = truth or true_parameters_exact(piece, config, geometry)
     except Exception as exc:  # a harness keeps going; the record says what failed
         return {"food": food.to_dict(), "crash": f"{type(exc).__name__}: {exc}"}
     rec: dict[str, Any] = {
@@ -150,15 +163,43 @@ def measure(food: Food, preset: str, noise: float, seed: int, calibrate: bool = 
         "warnings": out.warnings,
         "uncalibrated": out.details.get("uncalibrated"),
         "diagnostics": out.details.get("diagnostics", {}),
-        "wall_probes": out.wall_time,
+        "wall_probes": out.wall_time + sim_wall,
         "wall_fits": out.details.get("wall_fits", math.nan),
-        "cpu_probes": out.details.get("cpu_time", math.nan),
+        "cpu_probes": out.details.get("cpu_time", math.nan) + sim_cpu,
         "cpu_fits": out.details.get("cpu_fits", math.nan),
         "wall_total": time.perf_counter() - t0,
     }
     rec["error"] = {k: _rel(out.estimates[k], truth[k]) for k in PARAM_NAMES}
     rec["covered"] = {k: _covers(out.intervals.get(k), truth[k]) for k in PARAM_NAMES}
     return rec
+
+
+def stored_simulations(folder: Path, food: Food, config: ProbeConfig,
+                       geometry: Geometry | None
+                       ) -> tuple[ProbeRuns, dict[str, float], float, float]:
+    """A food's probe simulations (:func:`fetch_env.probes.simulate_probes`) and truth
+    (:func:`fetch_env.probes.true_parameters_exact`), with the wall and CPU seconds the
+    simulations took: read from ``folder`` where an earlier run kept them, else run and
+    kept there (written to a temporary file and renamed, so a stopped run leaves none half
+    written).  A stored file made for another piece, probe setting or end-effector is
+    refused (:meth:`fetch_env.probes.ProbeRuns.check_for`)."""
+    piece = food.piece()
+    path = folder / f"food{food.index}.pickle"
+    if path.exists():
+        with path.open("rb") as f:
+            runs, truth, sim_wall, sim_cpu = pickle.load(f)
+        runs.check_for(piece, config, geometry)
+        return runs, truth, sim_wall, sim_cpu
+    wall, cpu = time.perf_counter(), time.process_time()
+    runs = simulate_probes((piece,), config, geometry)
+    sim_wall, sim_cpu = time.perf_counter() - wall, time.process_time() - cpu
+    truth = true_parameters_exact(piece, config, geometry)
+    folder.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    with tmp.open("wb") as f:
+        pickle.dump((runs, truth, sim_wall, sim_cpu), f)
+    tmp.replace(path)
+    return runs, truth, sim_wall, sim_cpu
 
 
 def _rel(est: float, true: float) -> float:
@@ -511,13 +552,18 @@ class Reliability(TypedDict, total=False):
 # that shifts in the blades as it relaxes) or whose hold a linear drift pulls far is
 # missed, one whose clamps agree is not, whatever foods like it do.  So the rule is: the
 # clamps' spread of log g1 at most 0.03 and of log tau1 at most 0.06, a drift that moves
-# log tau1 by at most 0.1, half the log-range of the five slides' mu at most 0.06, mu's
+# log tau1 by at most 0.085, half the log-range of the five slides' mu at most 0.06, mu's
 # interval within +-12 % and g1's and tau1's within +-10 % (a backstop); a food whose traces
 # carry sensor noise is held to the same limits by its error model's noisy model
 # (``noisy``, estimators.calibration.ErrorModel.noisy, fitted on those foods alone).
 # Chosen on the 512 tuning foods, without and with 1 % noise, 8-fold cross-validated, fold
 # seeds 0-2, as the rule that calls no food with a g1, tau1 or mu error over 5 % reliable
-# and flags the fewest foods with every error under 2 %.  The tuning foods' harness runs
+# and flags the fewest foods with every error under 2 %.  The drift's limit was 0.1 until
+# the precise probes' relaxation solves started alternating (fetch_env.warmstart), which
+# moved one tuning food's clamps (a 14.9 mm, 0.019 MPa cube read 5-7 % off in tau1) from a
+# drift of 0.17 to 0.095; on those runs, fold seeds 0-2, 0.1 and 0.09 call it reliable,
+# 0.085 calls no miss reliable and flags 37-38 of 450-451 calm and 41-44 of 403-407 noisy
+# good foods, 0.08 flags 2 more noisy ones.  The tuning foods' harness runs
 # hold no mu error over 5 % (calm worst 3.4 %, noisy 4.1 %), so the slides' limit is set on
 # the slides' own study (fetch_env.probes.PROBE_PRESETS["precise"]'s comment: all 512 tuning
 # foods' slides, three 1 % noise draws each): 0.06 flags its one reading past 5 % (a
@@ -535,7 +581,8 @@ class Reliability(TypedDict, total=False):
 # away (fetch_env.slip_simex) and noisy traces had a model of their own, 37-43 of 174-177
 # noisy foods (21-24 %).
 _PRECISE_WIDTHS = {"g1": 0.1, "tau1": 0.1, "mu": 0.12}
-_PRECISE_LIMITS = {"repeat_sd_log_g1": 0.03, "repeat_sd_log_tau1": 0.06, "drift_log_tau1": 0.1}
+_PRECISE_LIMITS = {"repeat_sd_log_g1": 0.03, "repeat_sd_log_tau1": 0.06,
+                   "drift_log_tau1": 0.085}
 RELIABILITY: dict[str, Reliability] = {
     "precise": {"reliable_half_width": _PRECISE_WIDTHS,
                 "reliable_diagnostics": {**_PRECISE_LIMITS, "mu_trials": 0.06},
@@ -653,6 +700,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=Path("docs/data/validation"))
     p.add_argument("--name", default=None, help="file stem (default: set_preset_noise)")
     p.add_argument("--resume", action="store_true", help="skip foods already in the .jsonl")
+    p.add_argument("--simulations", type=Path, default=None, metavar="DIR",
+                   help="keep each food's probe simulations and truth in DIR, and fit those "
+                   "kept there by an earlier run of the same foods and settings instead of "
+                   "simulating again (another --noise or --no-calibration); the probe "
+                   "times recorded then include the kept simulations' own")
     p.add_argument("--no-calibration", action="store_true",
                    help="leave the preset's shipped calibration off")
     p.add_argument("--fit-calibration", type=Path, nargs="+", default=None, metavar="JSON",
@@ -715,6 +767,7 @@ def main(argv: list[str] | None = None) -> int:
             "systematic_sd": dict(PROBE_SYSTEMATIC_SD),
             "probe_config": dataclasses.asdict(PROBE_PRESETS[args.preset]),
             "calibration": PROBE_CALIBRATIONS[args.preset].to_dict() if calibrated else None,
+            "simulations": None if args.simulations is None else str(args.simulations),
             "command": "python benchmarks/validate_estimators.py " + " ".join(argv or sys.argv[1:])}
     records = list(done.values())
     t0 = time.perf_counter()
@@ -784,8 +837,9 @@ def _run_foods(foods: list[Food], args: argparse.Namespace, calibrated: bool, js
               + (rec["crash"] if "crash" in rec else " ".join(
                   f"{k} {100 * e[k]:+.2f}%" for k in ("g1", "tau1", "mu", "K1"))), flush=True)
 
-    tasks = [(f, args.preset, args.noise, food_seed(f), calibrated, config, geometry)
-             for f in foods]
+    kept = getattr(args, "simulations", None)
+    tasks = [(f, args.preset, args.noise, food_seed(f), calibrated, config, geometry,
+              None if kept is None else str(kept)) for f in foods]
     if getattr(args, "ray", None) is not None:
         return run_streamed_on_ray(measure, tasks, args.ray, args.workers, args.ray_batch,
                                    jsonl, records, report)

@@ -41,6 +41,7 @@ from fetch_env.scene import (
     simulated_young,
 )
 from fetch_env.viscoelastic import PronyRelaxation
+from fetch_env.warmstart import WARMSTARTS, AlternatingWarmstart, Warmstart
 
 Experiment = Literal["fetch", "relaxation", "slip"]
 EXPERIMENTS: tuple[str, ...] = ("fetch", "relaxation", "slip")
@@ -417,11 +418,15 @@ class FetchSimulator:
     def __init__(self, pieces: tuple[Piece, ...] | list[Piece],
                  geometry: Geometry | None = None, record_hz: float = 100.0,
                  timestep: float | None = None, impratio: float | None = None,
-                 relaxation_contact_ratio: float | None = None) -> None:
+                 relaxation_contact_ratio: float | None = None,
+                 warmstart: Warmstart = "previous") -> None:
         """``timestep`` and ``impratio`` override the scene's (5 ms; impratio 1000 for one
         piece, 100 for several: :data:`fetch_env.scene.MULTI_PIECE_IMPRATIO`) where given.
         ``relaxation_contact_ratio``: how the relaxation experiment stiffens the blades'
-        contact with the food (:func:`relaxation_contact_timeconst`)."""
+        contact with the food (:func:`relaxation_contact_timeconst`).  ``warmstart``: where
+        each step's solve starts, "previous" (MuJoCo's: the last step's accelerations) or
+        "alternating" (:class:`fetch_env.warmstart.AlternatingWarmstart`, for a stiff clamp
+        that rings at the step's period)."""
         require_finite("record_hz", record_hz)
         require(record_hz >= 100, "record_hz", record_hz, ">= 100 Hz")
         if timestep is not None:
@@ -442,6 +447,9 @@ class FetchSimulator:
         self.impratio = impratio
         check_relaxation_contact_ratio(relaxation_contact_ratio)
         self.relaxation_contact_ratio = relaxation_contact_ratio
+        require(isinstance(warmstart, str) and warmstart in WARMSTARTS, "warmstart", warmstart,
+                f"one of {WARMSTARTS}")
+        self.warmstart = warmstart
         self._scenes: dict[tuple[Geometry, float | None], Scene] = {}
 
     def scene_for(self, experiment: str) -> Scene:
@@ -496,7 +504,8 @@ class FetchSimulator:
             require(experiment != "slip" or not time_scale.scaled, "time_scale",
                     time_scale, "not for the slip experiment")
         scene = self.scene_for(experiment)
-        return _run(scene, experiment, action, self.record_hz, observer, time_scale)
+        return _run(scene, experiment, action, self.record_hz, observer, time_scale,
+                    self.warmstart)
 
 
 def check_relaxation_contact_ratio(ratio: float | None) -> None:
@@ -556,7 +565,7 @@ def servo_commands(scene: Scene, profile: Profile) -> tuple[np.ndarray, np.ndarr
 
 def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
          observer: Callable[[mujoco.MjData], None] | None = None,
-         time_scale: TimeScale | None = None) -> SimResult:
+         time_scale: TimeScale | None = None, warmstart: Warmstart = "previous") -> SimResult:
     """Simulate ``experiment`` on ``scene`` and collect its traces and per-piece outcomes."""
     m = scene.model
     d = initial_state(scene)
@@ -582,7 +591,7 @@ def _run(scene: Scene, experiment: str, action: FetchAction, record_hz: float,
                 else TiltLoad(scene, profile.tilt, 0.5 * action.lift_height,
                                  recorder.positions))
         stall_cap, end_stop = _step_through(scene, d, profile, schedule, prony, recorder, rec,
-                                            observer, fail, tilt)
+                                            observer, fail, tilt, warmstart)
     finally:
         prony.restore()  # the model's compiled rest shape, for the next run
     readings, rec["blade_overlap"], le_trace = recorder.finish()  # (timed: part of the run)
@@ -653,10 +662,12 @@ def _step_through(scene: Scene, d: mujoco.MjData, profile: Profile, schedule: _S
                   prony: PronyRelaxation, recorder: TraceRecorder, rec: dict[str, np.ndarray],
                   observer: Callable[[mujoco.MjData], None] | None,
                   fail: Callable[[str], SimulationDivergedError],
-                  tilt: TiltLoad | None = None) -> tuple[float, float]:
+                  tilt: TiltLoad | None = None,
+                  warmstart: Warmstart = "previous") -> tuple[float, float]:
     """Step the physics through ``profile``, filling ``rec`` and ``recorder`` at the
-    recorded steps (and loading the held pieces with ``tilt``'s roll, if any); returns the
-    hinge angle the motor stalled at (inf: none) and the end stop (study angle)."""
+    recorded steps (and loading the held pieces with ``tilt``'s roll, if any), each solve
+    started as ``warmstart`` says; returns the hinge angle the motor stalled at (inf: none)
+    and the end stop (study angle)."""
     m, ids = scene.model, scene.ids
     dt = m.opt.timestep
     n = len(profile.theta)
@@ -687,6 +698,7 @@ def _step_through(scene: Scene, d: mujoco.MjData, profile: Profile, schedule: _S
     smooth = 1.0 - math.exp(-dt / STALL_TIME)
     left, right = ids["servo_left"], ids["servo_right"]
     i_tilt = n if tilt is None else tilt.first
+    alternating = AlternatingWarmstart(m.nv) if warmstart == "alternating" else None
     for i in range(n):
         if i in rescale:
             prony.set_time_scale(rescale[i])
@@ -703,7 +715,11 @@ def _step_through(scene: Scene, d: mujoco.MjData, profile: Profile, schedule: _S
         ctrl[lift_act] = ctrl_lift[i]
         asleep = d.nv_awake == robot_nv
         prony.apply(d, asleep)
+        if alternating is not None:
+            alternating.before_step(d)
         mujoco.mj_step(m, d)
+        if alternating is not None:
+            alternating.after_step(d)
         moved = moved or not (asleep and d.nv_awake == robot_nv)
         if bad_qacc_count.number:  # autoreset is off: the state is still the bad one
             raise fail("bad or non-finite acceleration")

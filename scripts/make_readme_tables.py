@@ -35,6 +35,9 @@ SOURCES = {"physics": DATA / "readme_physics.json", "headroom": DATA / "headroom
            "speed": DATA / "readme_speed.json", "soak": DATA / "soak.json"}
 # One food's estimate timed in parts (benchmarks/bench_fits.py): a row of the speed table.
 ESTIMATE_COST = DATA / "bench_fits.json"
+# The same foods measured by the harness with one worker, nothing else on the machine: the
+# whole estimate's cost on one core, which bench_fits' two workers sharing it inflate.
+ESTIMATE_ONE_CORE = DATA / "validation" / "reporting_precise_noise0_one_core.json"
 HEADROOM_AGENTS = ("random", "study", "size-only", "model-based", "search", "ppo", "sac")
 TRAINED = ("ppo", "sac")
 
@@ -172,7 +175,9 @@ def speed_table(data: dict[str, Any]) -> str:
         f"{n} {100 * envs[i]['probe_share']:.0f} %" for n, i in zip(names, shown, strict=True))
         + " |")
     if ESTIMATE_COST.exists():
-        rows.append(estimate_cost_row(json.loads(ESTIMATE_COST.read_text())))
+        one_core = (json.loads(ESTIMATE_ONE_CORE.read_text())["summary"]
+                    if ESTIMATE_ONE_CORE.exists() else None)
+        rows.append(estimate_cost_row(json.loads(ESTIMATE_COST.read_text()), one_core))
     meta = data["meta"]
     load = (f"{meta['load_average_at_start']:g} at the start, "
             f"{meta['load_average_at_end']:g} at the end")
@@ -197,10 +202,11 @@ def quasi_static_row(shown: list[str]) -> str | None:
             f"setting, 40 scenes | {', '.join(each)} |")
 
 
-def estimate_cost_row(data: dict[str, Any]) -> str:
+def estimate_cost_row(data: dict[str, Any], one_core: dict[str, Any] | None = None) -> str:
     """One food's estimate, its simulations (one timing each) and its fits (each food's
     median of ``repeats``) at each noise level, with the foods past the bars, from
-    ``benchmarks/bench_fits.py``."""
+    ``benchmarks/bench_fits.py``; and, where ``one_core`` (the summary of a harness run with
+    one worker) is given, the whole estimate's slowest food there."""
     sims, bars = data["simulations_cpu_s"], data["bars_s"]
     fits = data["fits"]
     noise = " / ".join(f"{100 * float(n):g} %" if float(n) else "no" for n in fits)
@@ -212,7 +218,10 @@ def estimate_cost_row(data: dict[str, Any]) -> str:
             f"simulations median {statistics.median(sims):.1f} s, max {max(sims):.1f} s "
             f"({sum(s > bars['probes'] for s in sims)} over {bars['probes']:g} s); fits, "
             f"{noise} noise: median {each('median')} ms, max {each('max')} ms "
-            f"({each('over_bar', 1)} over {1e3 * bars['fits']:g} ms) |")
+            f"({each('over_bar', 1)} over {1e3 * bars['fits']:g} ms)"
+            + ("" if one_core is None else
+               f"; one core alone: max {one_core['cpu_probes_max']:.1f} s "
+               f"({one_core['cpu_probes_over_bar']} over {bars['probes']:g} s)") + " |")
 
 
 def soak_table(data: dict[str, Any]) -> str:

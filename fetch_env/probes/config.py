@@ -13,6 +13,7 @@ from fetch_env.controller import check_relaxation_contact_ratio
 from fetch_env.errors import require, require_finite, require_type
 from fetch_env.layouts import Piece
 from fetch_env.scene import Geometry
+from fetch_env.warmstart import WARMSTARTS, Warmstart
 
 PARAM_NAMES: tuple[str, ...] = ("K1", "K2", "B", "mu", "g1", "tau1")
 
@@ -135,6 +136,10 @@ class ProbeConfig:
             lengthens the held moment's decay (``tau1 (1 + K2 / (K1 + k_c))``), so the
             stiffer it is the closer the hold is to the food's own relaxation; it needs a
             fine step (``relaxation_timestep``) to stay stable (the ``precise`` preset).
+        relaxation_warmstart: where each step's solve of the relaxation clamp starts
+            (:mod:`fetch_env.warmstart`): "previous", MuJoCo's own, or "alternating", which
+            follows a held food that rings at the step's period under so stiff a contact
+            and takes fewer Newton iterations a step there (the ``precise`` preset).
     """
 
     strain: float = 0.06
@@ -158,6 +163,7 @@ class ProbeConfig:
     relaxation_contact_ratio: float | None = None
     slip_gap: float | None = None
     slip_repeats: int = 1
+    relaxation_warmstart: Warmstart = "previous"
 
     def __post_init__(self) -> None:
         for name, (lo, hi, lo_open) in _PROBE_LIMITS.items():
@@ -192,6 +198,9 @@ class ProbeConfig:
         require(isinstance(self.contact_angle, str) and self.contact_angle in CONTACT_ANGLES,
                 "contact_angle", self.contact_angle, f"one of {CONTACT_ANGLES}")
         check_relaxation_contact_ratio(self.relaxation_contact_ratio)
+        require(isinstance(self.relaxation_warmstart, str)
+                and self.relaxation_warmstart in WARMSTARTS, "relaxation_warmstart",
+                self.relaxation_warmstart, f"one of {WARMSTARTS}")
 
 
 # ProbeConfig's settings: name -> (low, high, low end excluded)

@@ -89,11 +89,18 @@ PROBE_PRESETS: dict[str, ProbeConfig] = {
     # spread flags 115 to flag those), and the longest read a few foods low without noise
     # (the 0.675 and 1.01 s slides alone 2.6 and 3.3 % at the 95th percentile, the 0.3 s
     # one 1.3 %).
+    #
+    # Its relaxation clamp's held food rings at the step's period under so stiff a contact,
+    # so each solve starts from the step before last where the accelerations alternate
+    # (relaxation_warmstart, fetch_env.warmstart): the same physics to the solver's
+    # tolerance, in fewer Newton iterations (docs/benchmarks.md, "Where the simulations'
+    # time goes").
     "precise": ProbeConfig(hold=20.0, slide_time=0.3, slip_envelope="per_blade_simex",
                            relaxation_repeats=7, contact_angle="camera",
                            relaxation_timestep=0.001, relaxation_impratio=1e4,
                            relaxation_contact_ratio=2.25, slip_gap=RELAXATION_GAP,
-                           slip_strain=0.03, slip_timestep=0.0025, slip_repeats=5),
+                           slip_strain=0.03, slip_timestep=0.0025, slip_repeats=5,
+                           relaxation_warmstart="alternating"),
 }
 
 # Calibrations of the presets' systematic errors, fitted on the validation harness's tuning

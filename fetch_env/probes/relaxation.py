@@ -190,7 +190,8 @@ def _relaxation_simulator(piece: Piece, config: ProbeConfig,
     """The simulator of ``piece`` alone under ``config``'s relaxation settings."""
     return FetchSimulator((piece,), geometry, impratio=config.relaxation_impratio,
                           timestep=config.relaxation_timestep,
-                          relaxation_contact_ratio=config.relaxation_contact_ratio)
+                          relaxation_contact_ratio=config.relaxation_contact_ratio,
+                          warmstart=config.relaxation_warmstart)
 
 
 def _relaxation_clamp(sim: FetchSimulator, config: ProbeConfig, strain: float) -> SimResult:
