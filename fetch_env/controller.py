@@ -41,7 +41,7 @@ from fetch_env.scene import (
     simulated_young,
 )
 from fetch_env.viscoelastic import PronyRelaxation
-from fetch_env.warmstart import WARMSTARTS, AlternatingWarmstart, Warmstart
+from fetch_env.warmstart import AlternatingWarmstart, Warmstart, check_warmstart
 
 Experiment = Literal["fetch", "relaxation", "slip"]
 EXPERIMENTS: tuple[str, ...] = ("fetch", "relaxation", "slip")
@@ -447,8 +447,7 @@ class FetchSimulator:
         self.impratio = impratio
         check_relaxation_contact_ratio(relaxation_contact_ratio)
         self.relaxation_contact_ratio = relaxation_contact_ratio
-        require(isinstance(warmstart, str) and warmstart in WARMSTARTS, "warmstart", warmstart,
-                f"one of {WARMSTARTS}")
+        check_warmstart("warmstart", warmstart)
         self.warmstart = warmstart
         self._scenes: dict[tuple[Geometry, float | None], Scene] = {}
 

@@ -31,8 +31,15 @@ from typing import Literal
 import mujoco
 import numpy as np
 
+from fetch_env.errors import require
+
 Warmstart = Literal["previous", "alternating"]
 WARMSTARTS: tuple[str, ...] = ("previous", "alternating")
+
+
+def check_warmstart(name: str, value: object) -> None:
+    """Refuse a warm start that is not one of :data:`WARMSTARTS`, naming ``name``."""
+    require(isinstance(value, str) and value in WARMSTARTS, name, value, f"one of {WARMSTARTS}")
 
 
 class AlternatingWarmstart:

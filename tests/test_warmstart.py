@@ -17,6 +17,7 @@ from fetch_env.food_space import Food
 from fetch_env.probes.config import ProbeConfig
 from fetch_env.probes.placement import probe_angle
 from fetch_env.probes.presets import PROBE_PRESETS
+from fetch_env.probes.relaxation import _relaxation_simulator
 from fetch_env.probes.traces import _mean_moment
 from fetch_env.warmstart import AlternatingWarmstart
 
@@ -67,11 +68,8 @@ def test_smooth_accelerations_keep_mujoco_s_start() -> None:
 def _held_clamp(warmstart: str, hold: float = 1.0) -> tuple[np.ndarray, float]:
     """The precise probes' relaxation clamp of the stiff ellipsoid with ``warmstart``: the
     held moment's samples and the mean Newton iterations of the recorded steps."""
-    cfg = PROBE_PRESETS["precise"]
-    sim = FetchSimulator((STIFF_ELLIPSOID.piece(),), None, impratio=cfg.relaxation_impratio,
-                         timestep=cfg.relaxation_timestep,
-                         relaxation_contact_ratio=cfg.relaxation_contact_ratio,
-                         warmstart=warmstart)  # type: ignore[arg-type]
+    cfg = dataclasses.replace(PROBE_PRESETS["precise"], relaxation_warmstart=warmstart)
+    sim = _relaxation_simulator(STIFF_ELLIPSOID.piece(), cfg, None)
     theta_d = probe_angle(sim, cfg.strain, "relaxation")
     iterations: list[int] = []
     res = sim.run("relaxation", FetchAction(theta_d=theta_d, omega=cfg.omega, hold=hold,

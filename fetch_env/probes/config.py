@@ -13,7 +13,7 @@ from fetch_env.controller import check_relaxation_contact_ratio
 from fetch_env.errors import require, require_finite, require_type
 from fetch_env.layouts import Piece
 from fetch_env.scene import Geometry
-from fetch_env.warmstart import WARMSTARTS, Warmstart
+from fetch_env.warmstart import Warmstart, check_warmstart
 
 PARAM_NAMES: tuple[str, ...] = ("K1", "K2", "B", "mu", "g1", "tau1")
 
@@ -198,9 +198,7 @@ class ProbeConfig:
         require(isinstance(self.contact_angle, str) and self.contact_angle in CONTACT_ANGLES,
                 "contact_angle", self.contact_angle, f"one of {CONTACT_ANGLES}")
         check_relaxation_contact_ratio(self.relaxation_contact_ratio)
-        require(isinstance(self.relaxation_warmstart, str)
-                and self.relaxation_warmstart in WARMSTARTS, "relaxation_warmstart",
-                self.relaxation_warmstart, f"one of {WARMSTARTS}")
+        check_warmstart("relaxation_warmstart", self.relaxation_warmstart)
 
 
 # ProbeConfig's settings: name -> (low, high, low end excluded)
