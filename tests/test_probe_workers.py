@@ -4,6 +4,8 @@ a dead worker said in one line."""
 
 from __future__ import annotations
 
+import json
+import math
 import multiprocessing
 import multiprocessing.forkserver
 import multiprocessing.resource_tracker
@@ -20,6 +22,7 @@ from pathlib import Path
 import pytest
 
 import fetch_env.parallel
+import fetch_env.probes.run as probe_run
 from fetch_env.clipping import reported_elsewhere
 from fetch_env.controller import FetchSimulator
 from fetch_env.errors import (
@@ -37,7 +40,13 @@ from fetch_env.parallel import (
     stop_exit_code,
     stop_on_signals,
 )
-from fetch_env.probes import PROBE_CALIBRATIONS, PROBE_PRESETS, run_probes, simulate_probes
+from fetch_env.probes import (
+    PROBE_CALIBRATIONS,
+    PROBE_PRESETS,
+    run_probes,
+    simulate_probes,
+    true_parameters_exact,
+)
 from tests.cli_helpers import assert_one_line_error, run_cli
 
 # a small stiff ellipsoid: the seven clamps of the repeated probes in ~1 s
@@ -95,6 +104,49 @@ def test_simulated_runs_fitted_later_give_the_same_outcome(
     assert fitted.warnings == whole.warnings
     assert fitted.details["diagnostics"] == whole.details["diagnostics"]
     assert fitted.reliable == whole.reliable and fitted.visco_valid
+
+
+def test_the_elastic_twin_runs_beside_the_probes() -> None:
+    """``simulate_probes(truth=True)`` on two workers: the twin's truth that
+    ``true_parameters_exact`` gives, bit for bit, and the probes' runs fitted to the outcome
+    of one ``run_probes`` call; without ``truth`` no twin runs."""
+    config = PROBE_PRESETS["repeated"]
+    runs = simulate_probes(PIECES, config, workers=2, truth=True)
+    assert runs.truth == true_parameters_exact(PIECES[0], config)
+    fitted = run_probes(PIECES, config, seed=4, runs=runs)
+    whole = run_probes(PIECES, config, seed=4)
+    assert (fitted.estimates, fitted.intervals) == (whole.estimates, whole.intervals)
+    assert simulate_probes(PIECES, config).truth is None
+
+
+def test_a_twin_that_fails_keeps_its_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The twin's error is the runs' ``truth``, for the caller to report; the probes' runs
+    are kept."""
+    def diverge(*_args: object) -> None:
+        raise SimulationDivergedError("twin diverged", None, {})
+
+    monkeypatch.setattr(probe_run, "true_parameters_exact", diverge)
+    runs = simulate_probes(PIECES, PROBE_PRESETS["repeated"], truth=True)
+    assert isinstance(runs.truth, SimulationDivergedError)
+    assert len(runs.clamps) == PROBE_PRESETS["repeated"].relaxation_repeats
+
+
+def test_cli_workers_give_the_serial_numbers(tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """``food-fetch estimate --workers 2`` (the twin in the pool): every number of the
+    JSON but the timings as with one worker."""
+    food = ["--probes", "repeated", "--shape", "ellipsoid", "--size", "0.012", "--young",
+            "8e5", "--g1", "0.35", "--tau1", "1.2", "--mu", "0.4"]
+    out = {}
+    for workers in (1, 2):
+        path = tmp_path / f"w{workers}.json"
+        code, _, err = run_cli(["estimate", *food, "--workers", str(workers), "--json",
+                                str(path)], capsys)
+        assert code == 0, err
+        out[workers] = {k: v for k, v in json.loads(path.read_text()).items()
+                        if k != "details"}
+    assert out[2] == out[1]
+    assert all(math.isfinite(v) and v > 0 for v in out[2]["true"].values())
 
 
 def test_runs_of_another_piece_or_config_are_refused() -> None:

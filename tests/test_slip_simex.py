@@ -35,7 +35,7 @@ def _late_slide(run: SimResult, noise: float, seed: int
     rng = np.random.default_rng(seed)
     f = {k: slip._noisy(run.traces[k], noise, rng) for k in FORCES}
     idx = np.flatnonzero(run.traces["phase"] == PHASE_CODE["slide"])
-    noise_sd = slip._settle_noise(run.traces["phase"], f)
+    noise_sd = slip._settle_noise(run.traces["phase"] == PHASE_CODE["settle"], f)
     assert noise_sd is not None
     return f, idx[len(idx) // 4:], noise_sd
 

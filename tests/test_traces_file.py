@@ -16,7 +16,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from agents.cli.estimate import NAMES
-from agents.cli.traces import estimate_recorded
+from agents.cli.traces import SlipReading, estimate_recorded
 from estimators import (
     ClampGeometry,
     EstimationError,
@@ -30,11 +30,13 @@ from estimators import (
 )
 from estimators.sls import clamp_angle
 from estimators.trace_files import MIN_SAMPLES, PHASES
+from fetch_env.probes import read_mu
 from fetch_env.study_probes import SIM_CLAMP_WEIGHT, relaxation_traces
 from tests.cli_helpers import assert_one_line_error, run_cli
 
 RELAX_KEYS = ("K1", "K2", "B", "g1", "tau1")
 FORCES = ("normal_left", "tangential_left", "normal_right", "tangential_right")
+MU = 0.3  # the synthetic slides' friction coefficient
 
 
 # ------------------------------------------------------------------------------- helpers
@@ -147,22 +149,87 @@ def test_a_known_contact_angle_is_the_full_fits(
                           theta_1=0.03)
 
 
+def _probe_reading(tr: dict[str, np.ndarray]) -> tuple[float, list[str], tuple[float, float]]:
+    """mu as the simulated slip probe reads the run ``tr`` (its phases mark the slide and
+    the settle before the blades touch)."""
+    phase = tr["phase"]
+    return read_mu(tr["t"], {k: tr[k] for k in FORCES}, phase == PHASES.index("slide"),
+                   phase == PHASES.index("settle"), "per_blade_simex")
+
+
 def test_slip_round_trip_json_and_csv(
     sim_docs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    """The default reading is the simulated probes' (``read_mu``) and ``--mu-reading
+    study`` the study's estimator, on the JSON and on the CSV made from it alike."""
     doc = json.loads(sim_docs["slip"].read_text())
     tr = {k: np.asarray(v) for k, v in doc["traces"].items()}
     slide_start = float(tr["t"][tr["phase"] == PHASES.index("slide")][0])
     direct = estimate_friction(tr["t"], *(tr[k] for k in FORCES), slide_start=slide_start)
+    probe_mu, _, probe_interval = _probe_reading(tr)
     # no slide_start line: the CSV's phase column gives it, as the JSON's does
     csv_path = write_csv(tmp_path / "slip.csv", {k: tr[k] for k in ("t", *FORCES, "phase")})
     for path in (sim_docs["slip"], csv_path):
         r = estimate_json(path, capsys)
+        assert r["estimate"]["mu"] == probe_mu and r["interval"]["mu"] == list(probe_interval)
+        assert r["details"]["slip"]["reading"] == "slipping"
+        assert r["details"]["settings"]["mu_reading"] == "slipping"
+        assert all(r["estimate"][k] is None for k in RELAX_KEYS)  # slip data only
+        assert r["details"]["settings"]["source"]["slide_start"].startswith("first 'slide'")
+        r = estimate_json(path, capsys, "--mu-reading", "study")
         assert_allclose(r["estimate"]["mu"], direct.mu, rtol=1e-9)
         assert_allclose(r["interval"]["mu"], direct.interval, rtol=1e-9)
-        assert all(r["estimate"][k] is None for k in RELAX_KEYS)  # slip data only
         assert r["details"]["slip"]["window"] == list(direct.window)
-        assert r["details"]["settings"]["source"]["slide_start"].startswith("first 'slide'")
+        assert r["details"]["slip"]["reading"] == "study"
+    assert_allclose(probe_mu, 0.3, rtol=0.01)  # the default cube's mu
+
+
+def test_a_noisy_stick_slip_log_is_read_at_its_slipping_level(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A robot's CSV of a stick-slipping slide with 1 % sensor noise and no phase column
+    (``clamp_start`` and ``slide_start`` lines mark it): the default reading is the one the
+    simulated probe takes of the same forces and lands within 1.5 % of mu; the study's
+    plateau reads the sticking level, over 10 % low, with an interval that misses mu."""
+    rng = np.random.default_rng(11)
+    n_settle, n_slide = 30, 200
+    ratio = np.where(np.arange(n_slide) % 10 < 3, MU, 0.7 * MU)  # slips 3 samples in 10
+    t = 0.005 * np.arange(n_settle + n_slide)
+    normal_l = np.r_[np.zeros(n_settle), np.full(n_slide, 1.0)]
+    normal_r = np.r_[np.zeros(n_settle), np.full(n_slide, 1.2)]
+    clean = {"normal_left": normal_l, "tangential_left": normal_l * np.r_[np.zeros(n_settle),
+                                                                            ratio],
+             "normal_right": normal_r, "tangential_right": normal_r * np.r_[np.zeros(n_settle),
+                                                                             ratio]}
+    noisy = {k: v + 0.01 * float(np.abs(v).max()) * rng.standard_normal(v.size)
+             for k, v in clean.items()}
+    slide_start = float(t[n_settle])
+    path = write_csv(tmp_path / "robot_slip.csv", {"t": t, **noisy},
+                     meta={"clamp_start": float(t[n_settle - 1]), "slide_start": slide_start})
+    r = estimate_json(path, capsys)
+    expected = read_mu(t, noisy, t >= slide_start, t < t[n_settle - 1], "per_blade_simex")
+    assert r["estimate"]["mu"] == expected[0]
+    assert_allclose(r["estimate"]["mu"], MU, rtol=0.015)
+    lo, hi = r["interval"]["mu"]
+    assert lo <= MU <= hi
+    study = estimate_json(path, capsys, "--mu-reading", "study")
+    assert study["estimate"]["mu"] < 0.9 * MU
+    lo, hi = study["interval"]["mu"]
+    assert not lo <= MU <= hi
+
+
+def test_a_slide_the_file_does_not_mark_is_read_by_the_study_estimator(
+    tmp_path: Path, sim_docs: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Without a phase column or ``slide_start`` the slipping level has no slide to read:
+    the study's estimator, which finds the slide itself, reads it, and the report says so."""
+    doc = json.loads(sim_docs["slip"].read_text())
+    tr = {k: np.asarray(v) for k, v in doc["traces"].items()}
+    path = write_csv(tmp_path / "unmarked.csv", {k: tr[k] for k in ("t", *FORCES)})
+    r = estimate_json(path, capsys)
+    direct = estimate_friction(tr["t"], *(tr[k] for k in FORCES))
+    assert r["estimate"]["mu"] == direct.mu and r["details"]["slip"]["reading"] == "study"
+    assert any("the file marks no slide" in w for w in r["warnings"])
 
 
 def test_report_shows_unknown_truth_as_dash(
@@ -181,11 +248,18 @@ def test_estimate_recorded_is_the_estimators(sim_docs: dict[str, Path]) -> None:
     traces = load_traces(sim_docs["slip"])
     assert traces.probes == ("slip",) and traces.clamp_start == 0.3
     got = estimate_recorded(traces)
+    assert isinstance(got.friction, SlipReading) and got.relaxation is None
+    assert not got.failures and not got.notes
+    tr = {k: np.asarray(v) for k, v in json.loads(sim_docs["slip"].read_text())[
+        "traces"].items()}
+    assert got.friction.mu == _probe_reading(tr)[0]
+    study = estimate_recorded(traces, mu_reading="study")
     direct = estimate_friction(*traces.slip_inputs(), slide_start=traces.slide_start)
-    assert got.friction is not None and got.relaxation is None and not got.failures
-    assert got.friction.mu == direct.mu
+    assert study.friction is not None and study.friction.mu == direct.mu
     with pytest.raises(TraceFileError, match="no relaxation data"):
         estimate_recorded(traces, probe="relaxation")
+    with pytest.raises(ValueError, match="mu_reading must be one of"):
+        estimate_recorded(traces, mu_reading="plateau")
 
 
 def test_real_robot_csv_non_uniform_geometry_given(

@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -210,20 +211,27 @@ def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any
         PROBE_CALIBRATIONS,
         PROBE_PRESETS,
         run_probes,
+        simulate_probes,
         true_parameters_exact,
     )
 
     config = PROBE_PRESETS[preset]
     calibration = PROBE_CALIBRATIONS.get(preset)
+    start = time.perf_counter()
+    # On several workers the elastic twin runs in the probes' pool, beside their clamps
+    # and slides; on one, after them, as run_probes would.
+    runs = (simulate_probes(pieces, config, workers=args.workers, truth=True)
+            if args.workers > 1 else None)
     res = run_probes(pieces, config, noise=args.noise, seed=args.seed,
-                     calibration=calibration, workers=args.workers)
+                     calibration=calibration, workers=args.workers, runs=runs)
     keep = {"both": NAMES, "relaxation": NAMES[:5], "slip": ("mu",)}[args.probe]
     estimate = {k: res.estimates[k] if k in keep else math.nan for k in NAMES}
     interval = {k: res.intervals.get(k, (math.nan, math.nan)) for k in keep}
     out = ProbeEstimate(true=dict.fromkeys(NAMES, math.nan), estimate=estimate,
                         interval=interval, reliable=res.reliable, warnings=list(res.warnings))
     try:
-        truth = true_parameters_exact(pieces[0], config)
+        truth = _twin_truth(runs) if runs is not None else true_parameters_exact(pieces[0],
+                                                                                  config)
     except SimulationDivergedError as exc:
         out.warnings.append(f"true K1, K2, B not computed: the elastic twin diverged: {exc}")
         truth = {"K1": math.nan, "K2": math.nan, "B": math.nan, "g1": material.g1,
@@ -239,8 +247,16 @@ def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any
             f"{calibration.form}, fitted on {calibration.n_foods} reference foods")}
     out.details["probes"] = {k: v for k, v in res.details.items() if k != "uncalibrated"}
     out.details["uncalibrated"] = res.details.get("uncalibrated")
-    out.details["wall_time"] = res.wall_time
+    out.details["wall_time"] = res.wall_time if runs is None else time.perf_counter() - start
     return out
+
+
+def _twin_truth(runs: Any) -> dict[str, float]:
+    """The elastic twin's truth that ``simulate_probes(truth=True)`` ran, or the error it
+    raised, raised again here."""
+    if isinstance(runs.truth, BaseException):
+        raise runs.truth
+    return dict(runs.truth)
 
 
 def probe_clips(args: argparse.Namespace, pieces: tuple[Any, ...], probes: str,
@@ -408,7 +424,7 @@ def print_report(r: ProbeEstimate) -> None:
 
 def cmd_estimate(args: argparse.Namespace) -> int:
     if any(getattr(args, k, None) is not None
-           for k in ("traces", "L", "theta_0", "contact_angle")):
+           for k in ("traces", "L", "theta_0", "contact_angle", "mu_reading")):
         from agents.cli.traces import cmd_estimate_traces  # recorded, not simulated
 
         return cmd_estimate_traces(args)
@@ -511,9 +527,10 @@ def add_options(p: argparse.ArgumentParser) -> None:
         type=positive_int,
         default=1,
         metavar="N",
-        help="run the probes' simulations (the precise probes' seven clamps and three "
-        "slides) on N processes at once: the same numbers as with 1, sooner where cores "
-        "are free; the JSON's CPU times are then this process's only (default: 1)",
+        help="run the probes' simulations (the precise probes' seven clamps and five "
+        "slides, and the elastic twin the estimates are held to) on N processes at once: "
+        "the same numbers as with 1, sooner where cores are free; the JSON's CPU times are "
+        "then this process's only (default: 1)",
     )
     p.add_argument(
         "--json",

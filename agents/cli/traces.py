@@ -1,14 +1,17 @@
 """``food-fetch estimate --traces FILE``: the estimators on recorded sensor traces.
 
 A real robot's log (CSV) or ``simulate --json`` output (schema: ``docs/traces_format.md``) is
-read by :func:`estimators.load_traces` and estimated by :func:`estimate_recorded`, which calls
-the estimators as the study's probes of ``food-fetch estimate --probes study`` do (the full fit
-with the same clamp weight, or the three-step method; :func:`estimators.estimate_friction`),
-so switching to better estimators is one edit there.  The default ``precise`` probes' readings
-(seven clamps' medians, the calibration fitted for their clamp, mu per half-spoon at the
-slipping level less its noise bias) belong to their own simulated clamps and are not applied
-to a recorded run.  The report and ``--json`` have the simulated
-path's shape, with every true value unknown ('-' / null).
+read by :func:`estimators.load_traces` and estimated by :func:`estimate_recorded`, the one
+place that picks the estimators: for the clamp, as the study's probes of ``food-fetch
+estimate --probes study`` do (the full fit with the same clamp weight, or the three-step
+method); for the slide, by default mu as the simulated probes read it
+(:func:`fetch_env.probes.read_mu`: each half-spoon's force ratio at the level it slips at,
+less the bias the sensor's noise puts into it), which holds on stick-slipping and noisy
+slides where the study's plateau (:func:`estimators.estimate_friction`, ``mu_reading=
+"study"``) reads a sticking level.  The ``precise`` probes' other readings (seven clamps'
+medians, the calibration fitted for their clamp) belong to their own simulated clamps and
+are not applied to a recorded run.  The report and ``--json`` have the simulated path's
+shape, with every true value unknown ('-' / null).
 
 The simulation's options (food, clamp, noise, seed, ...) are refused with ``--traces``: a
 recorded run is what it is, and accepting them silently would suggest they changed something.
@@ -37,11 +40,13 @@ from estimators import (
     estimate_three_step,
     load_traces,
 )
+from estimators.trace_files import PHASES
+from fetch_env.slip_simex import FORCES as SLIP_FORCES
 from fetch_env.study_probes import SIM_CLAMP_WEIGHT
 
 # Options of ``estimate`` that keep their meaning with --traces (argparse dests).
 TRACE_OPTIONS = frozenset({"traces", "L", "theta_0", "contact_angle", "probe", "method",
-                           "json"})
+                           "mu_reading", "json"})
 PROG = "food-fetch estimate"
 
 
@@ -85,16 +90,41 @@ def add_traces_options(p: argparse.ArgumentParser) -> None:
                    help="hinge angle [rad] at which the faces first touch the piece, where "
                    "known (e.g. from a depth camera): the full fit uses it instead of the "
                    "one it detects (K1, K2, B scale with 1 / (sin theta_d - sin it))")
+    g.add_argument("--mu-reading", choices=MU_READINGS, default=None,
+                   help="how mu is read from the slide: 'slipping' (each half-spoon's force "
+                   "ratio at the level it slips at, less the sensor noise's bias; needs the "
+                   "slide marked by a phase column or slide_start) or 'study' (the study's "
+                   "plateau of the ratio) (default: slipping)")
+
+
+# How mu is read from a recorded slide (estimate_recorded's mu_reading).
+MU_READINGS = ("slipping", "study")
+
+
+@dataclass
+class SlipReading:
+    """mu read from a recorded slide by :func:`fetch_env.probes.read_mu`: its 95 % interval
+    (noise and model error), whether it counts as reliable (the interval within
+    ``fetch_env.probes.RELIABLE_HALF_WIDTH`` of mu, the uncalibrated probes' rule), the
+    reading's warnings and its diagnostics."""
+
+    mu: float
+    interval: tuple[float, float]
+    reliable: bool
+    warnings: list[str]
+    diagnostics: dict[str, float]
 
 
 @dataclass
 class RecordedEstimates:
-    """What :func:`estimate_recorded` got: each probe's estimate, or why it failed."""
+    """What :func:`estimate_recorded` got: each probe's estimate, or why it failed, and
+    ``notes`` on how an estimate was read where it was not read as asked."""
 
     relaxation: ViscoelasticEstimate | None = None
-    friction: FrictionEstimate | None = None
+    friction: FrictionEstimate | SlipReading | None = None
     failures: dict[str, str] = field(default_factory=dict)
     fit_time: float = math.nan
+    notes: list[str] = field(default_factory=list)
 
 
 def probes_to_run(traces: RecordedTraces, probe: str) -> tuple[str, ...]:
@@ -116,20 +146,25 @@ def probes_to_run(traces: RecordedTraces, probe: str) -> tuple[str, ...]:
 
 def estimate_recorded(
     traces: RecordedTraces, *, method: str = "full", probe: str = "both",
-    contact_angle: float | None = None
+    contact_angle: float | None = None, mu_reading: str = "slipping"
 ) -> RecordedEstimates:
-    """Run the estimators on recorded traces as the study's simulated probes run them (the full fit
-    with the simulator's clamp weight, or the three-step method; the friction estimator): the
-    one place that picks them.  An estimator's failure is kept in ``failures``, not raised.
-    ``contact_angle`` [rad], where known, is the full fit's first-contact angle.
+    """Run the estimators on recorded traces: the one place that picks them.  The clamp as
+    the study's simulated probes run it (the full fit with the simulator's clamp weight, or
+    the three-step method); the slide by ``mu_reading``: "slipping", mu as the simulated
+    probes read it (:func:`read_recorded_mu`; where the file marks no slide, the study's
+    estimator, with a note), or "study", the study's friction estimator.  An estimator's
+    failure is kept in ``failures``, not raised.  ``contact_angle`` [rad], where known, is
+    the full fit's first-contact angle.
 
     Raises:
-        ValueError: an unknown method or probe name, or a contact angle with the three-step
-            method (which reads it off the trace).
+        ValueError: an unknown method, probe name or mu reading, or a contact angle with the
+            three-step method (which reads it off the trace).
         TraceFileError: ``probe`` names a probe the file has no data for.
     """
     if method not in ("full", "three-step"):
         raise ValueError(f"method must be 'full' or 'three-step', got {method!r}")
+    if mu_reading not in MU_READINGS:
+        raise ValueError(f"mu_reading must be one of {MU_READINGS}, got {mu_reading!r}")
     if contact_angle is not None and method != "full":
         raise ValueError("a known contact angle is for the full fit (--method full); the "
                          "three-step method reads it off the trace")
@@ -149,12 +184,56 @@ def estimate_recorded(
             out.failures["relaxation"] = f"{type(exc).__name__}: {exc}"
         out.fit_time = time.perf_counter() - t0
     if "slip" in run:
+        slide = slide_samples(traces) if mu_reading == "slipping" else None
+        if mu_reading == "slipping" and slide is None:
+            out.notes.append("the file marks no slide (no phase column or slide_start): mu "
+                             "read by the study's plateau, which finds the slide itself")
         try:
-            out.friction = estimate_friction(*traces.slip_inputs(),
-                                             slide_start=traces.slide_start)
+            out.friction = (read_recorded_mu(traces, slide) if slide is not None
+                            else estimate_friction(*traces.slip_inputs(),
+                                                   slide_start=traces.slide_start))
         except caught as exc:
             out.failures["slip"] = f"{type(exc).__name__}: {exc}"
     return out
+
+
+def slide_samples(traces: RecordedTraces) -> np.ndarray | None:
+    """Which samples of a recorded run are its slide: from ``slide_start`` on where the file
+    gives it (as the study's estimator reads it), else phase ``slide`` of the phase column;
+    None where it has neither."""
+    if traces.slide_start is not None:
+        return traces.t >= traces.slide_start
+    if traces.phase is not None:
+        return traces.phase == PHASES.index("slide")
+    return None
+
+
+def settle_samples(traces: RecordedTraces) -> np.ndarray | None:
+    """The samples before the blades touch the piece, whose force readings are the sensor's
+    noise alone: phase ``settle`` of the phase column, else those before ``clamp_start``;
+    None where the file has neither."""
+    if traces.phase is not None:
+        return traces.phase == PHASES.index("settle")
+    if traces.clamp_start is not None:
+        return traces.t < traces.clamp_start
+    return None
+
+
+def read_recorded_mu(traces: RecordedTraces, slide: np.ndarray) -> SlipReading:
+    """mu from a recorded slide as the simulated slip probe reads its own
+    (:func:`fetch_env.probes.read_mu`, ``per_blade_simex``): each half-spoon's force ratio at
+    the level it slips at, the lower of the two, less the bias the sensor's noise puts into
+    it (the noise read from :func:`settle_samples`; without them, uncorrected, with a
+    warning).  Raises :class:`estimators.EstimationError` when the slide gives no mu."""
+    from fetch_env.probes import RELIABLE_HALF_WIDTH, read_mu
+
+    t, *forces = traces.slip_inputs()
+    named = dict(zip(SLIP_FORCES, forces, strict=True))
+    diagnostics: dict[str, float] = {}
+    mu, warns, (lo, hi) = read_mu(t, named, slide, settle_samples(traces), "per_blade_simex",
+                                  diagnostics)
+    reliable = max(hi / mu - 1.0, 1.0 - lo / mu) <= RELIABLE_HALF_WIDTH
+    return SlipReading(mu, (lo, hi), reliable, warns, diagnostics)
 
 
 def to_probe_estimate(traces: RecordedTraces, got: RecordedEstimates) -> ProbeEstimate:
@@ -168,20 +247,30 @@ def to_probe_estimate(traces: RecordedTraces, got: RecordedEstimates) -> ProbeEs
     if est is not None:
         out.add_relaxation(est, got.fit_time)
         out.details["relaxation"]["n_samples"] = int(traces.relaxation_inputs()[0].size)
-    if got.friction is not None:
+    if isinstance(got.friction, SlipReading):
+        fr = got.friction
+        out.estimate["mu"], out.interval["mu"] = fr.mu, fr.interval
+        out.reliable &= fr.reliable
+        out.warnings += [f"slip probe: {w}" for w in fr.warnings]
+        out.details["slip"] = {"reading": "slipping", "diagnostics": fr.diagnostics}
+    elif got.friction is not None:
         out.add_friction(got.friction)
+        out.details["slip"]["reading"] = "study"
+    out.warnings += [f"slip probe: {n}" for n in got.notes]
     return out
 
 
 def check_trace_options(args: argparse.Namespace) -> None:
-    """Refuse ``--L``/``--theta-0``/``--contact-angle`` without ``--traces``, simulation
-    options with it, and ``--contact-angle`` with ``--method three-step``."""
+    """Refuse ``--L``/``--theta-0``/``--contact-angle``/``--mu-reading`` without
+    ``--traces``, simulation options with it, and ``--contact-angle`` with ``--method
+    three-step``."""
     if args.traces is None:
         given = [o for o, v in (("--L", args.L), ("--theta-0", args.theta_0),
-                                ("--contact-angle", args.contact_angle)) if v is not None]
+                                ("--contact-angle", args.contact_angle),
+                                ("--mu-reading", args.mu_reading)) if v is not None]
         raise UsageError(f"{PROG}: {' and '.join(given)} "
                          f"{'needs' if len(given) == 1 else 'need'} --traces FILE (a simulated "
-                         "run knows its geometry)")
+                         "run knows its geometry and reads mu as its probes do)")
     given = list(dict.fromkeys(args.simulation_options))
     if given:
         raise UsageError(f"{PROG}: {', '.join(given)} cannot be used with --traces (they set "
@@ -213,12 +302,14 @@ def cmd_estimate_traces(args: argparse.Namespace) -> int:
         traces = load_traces(args.traces, L=args.L, theta_0=args.theta_0)
         _check_contact_angle(args.contact_angle, traces, args.probe)
         got = estimate_recorded(traces, method=args.method, probe=args.probe,
-                                contact_angle=args.contact_angle)
+                                contact_angle=args.contact_angle,
+                                mu_reading=args.mu_reading or "slipping")
     except TraceFileError as exc:
         raise UsageError(f"{PROG}: {exc}") from None
     result = to_probe_estimate(traces, got)
     result.details["settings"] = {
         "traces": traces.path, "method": args.method, "probe": args.probe,
+        "mu_reading": args.mu_reading or "slipping",
         "clamp_weight": SIM_CLAMP_WEIGHT, "contact_angle": args.contact_angle,
         "n_samples": int(traces.t.size),
         "source": dict(traces.source),

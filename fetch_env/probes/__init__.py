@@ -110,6 +110,7 @@ from fetch_env.probes.slip import (
     SLIPPING_ITERATIONS,
     SLIPPING_TAIL,
     estimate_mu,
+    read_mu,
     slip_run,
 )
 from fetch_env.probes.truth import (
@@ -159,6 +160,7 @@ __all__ = [
     "nominal_stiffness",
     "probe_angle",
     "probe_piece_index",
+    "read_mu",
     "reads_drift",
     "relaxation_run",
     "repeat_strains",

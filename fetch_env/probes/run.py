@@ -36,6 +36,7 @@ from fetch_env.probes.placement import probe_piece_index
 from fetch_env.probes.relaxation import _relaxation_probe, relaxation_run
 from fetch_env.probes.results import ProbeOutcome, _add_cpu
 from fetch_env.probes.slip import _slide_run, _slip_probe
+from fetch_env.probes.truth import true_parameters_exact
 from fetch_env.scene import Geometry
 
 
@@ -88,7 +89,7 @@ def run_probes(pieces: tuple[Piece, ...], config: ProbeConfig, geometry: Geometr
     if runs is not None:
         clamps, slides = list(runs.clamps), list(runs.slides)
     elif workers > 1:
-        clamps, slides = _runs_ahead(piece, config, geometry, workers)
+        clamps, slides, _ = _runs_ahead(piece, config, geometry, workers)
     else:
         clamps, slides = None, None
     out.details["workers"] = workers
@@ -121,6 +122,9 @@ class ProbeRuns:
     geometry: Geometry | None
     clamps: tuple[Any, ...]
     slides: tuple[Any, ...]
+    # the piece's elastic-twin truth (true_parameters_exact) or the error it raised, where
+    # simulate_probes ran it beside the probes (truth=True); None where it did not
+    truth: Any = None
 
     def check_for(self, piece: Piece, config: ProbeConfig, geometry: Geometry | None) -> None:
         """Raise :class:`InvalidParameterError` unless these are the simulations of
@@ -134,30 +138,41 @@ class ProbeRuns:
 
 
 def simulate_probes(pieces: tuple[Piece, ...], config: ProbeConfig,
-                    geometry: Geometry | None = None, workers: int = 1) -> ProbeRuns:
+                    geometry: Geometry | None = None, workers: int = 1,
+                    truth: bool = False) -> ProbeRuns:
     """Run the probes' simulations on the centre piece of ``pieces`` (every relaxation clamp
     and slide; on ``workers`` processes at once where > 1) without fitting them; pass the
     result to :func:`run_probes` as ``runs``.  A clamp or slide that fails keeps its error,
     which :func:`run_probes` reports as it would have.
+
+    ``truth``: also run the piece's elastic twin (:func:`true_parameters_exact`, the truth
+    the estimates are held to) among the same tasks, so that on several workers it runs
+    beside the probes instead of after them; its result, or the error it raised, is the
+    returned ``truth``.
 
     Raises:
         fetch_env.parallel.WorkerLostError: a worker process died mid-run.
     """
     require_int("workers", workers)
     require(workers >= 1, "workers", workers, ">= 1")
+    require_type("truth", truth, bool, "True or False")
     _check_probe_args(None, config, geometry)
     piece = dataclasses.replace(pieces[probe_piece_index(pieces)], x=0.0, y=0.0)
-    clamps, slides = _runs_ahead(piece, config, geometry, workers)
-    return ProbeRuns(piece, config, geometry, tuple(clamps), tuple(slides))
+    clamps, slides, twin = _runs_ahead(piece, config, geometry, workers, truth)
+    return ProbeRuns(piece, config, geometry, tuple(clamps), tuple(slides), twin)
 
 
 def _runs_ahead(piece: Piece, config: ProbeConfig, geometry: Geometry | None,
-                workers: int) -> tuple[list[Any], list[Any]]:
-    """Every relaxation clamp and slide of the probes, run at once on ``workers`` processes:
-    (the clamps, the slides), each a result or the error it raised."""
-    tasks: list[Task] = [(relaxation_run, (piece, config, geometry, strain))
-                         for strain in repeat_strains(config)]
+                workers: int, truth: bool = False) -> tuple[list[Any], list[Any], Any]:
+    """Every relaxation clamp and slide of the probes, and where ``truth`` the elastic twin,
+    run at once on ``workers`` processes: (the clamps, the slides, the twin's truth or
+    None), each a result or the error it raised.  The twin goes first: it is the longest
+    single task, so the pool does not wait on it at the end."""
+    tasks: list[Task] = [(true_parameters_exact, (piece, config, geometry))] if truth else []
+    tasks += [(relaxation_run, (piece, config, geometry, strain))
+              for strain in repeat_strains(config)]
     tasks += [(_slide_run, (piece, config, geometry, t)) for t in slide_times(config)]
     results = run_ahead(tasks, workers)
+    twin = results.pop(0) if truth else None
     n = config.relaxation_repeats
-    return results[:n], results[n:]
+    return results[:n], results[n:], twin

@@ -31,6 +31,7 @@ from fetch_env.probes.placement import probe_angle
 from fetch_env.probes.results import ProbeOutcome, _add_cpu
 from fetch_env.probes.traces import _check_run_args, _noisy
 from fetch_env.scene import Geometry
+from fetch_env.slip_simex import FORCES as SLIP_FORCES
 from fetch_env.slip_simex import LevelRule, Simex, simex_level, slipping_shift
 
 # slip probe: quantile of |F_t| / F_n taken as mu where the plateau is lower.  Coulomb bounds
@@ -132,8 +133,26 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
                 diagnostics: dict[str, float] | None = None,
                 envelope: SlipEnvelope = "sum"
                 ) -> tuple[float, list[str], tuple[float, float]]:
-    """mu from a slip run, with a 95 % interval; raises :class:`EstimationError` when the
-    trace cannot give it.
+    """mu from a slip run, with a 95 % interval: :func:`read_mu` on its traces, the slide
+    and the settle before the blades touch told by its phases.  ``noise`` (with ``rng``)
+    adds white noise of that share of each force trace's peak first.  Raises
+    :class:`EstimationError` when the trace cannot give mu."""
+    _check_run_args(result, "slip", noise, rng)
+    require(isinstance(envelope, str) and envelope in SLIP_ENVELOPES, "envelope", envelope,
+            f"one of {SLIP_ENVELOPES}")
+    tr = result.traces
+    f = {k: _noisy(tr[k], noise, rng) for k in SLIP_FORCES}
+    return read_mu(tr["t"], f, tr["phase"] == PHASE_CODE["slide"],
+                   tr["phase"] == PHASE_CODE["settle"], envelope, diagnostics)
+
+
+def read_mu(t: np.ndarray, forces: dict[str, np.ndarray], slide: np.ndarray,
+            settle: np.ndarray | None, envelope: SlipEnvelope = "per_blade_simex",
+            diagnostics: dict[str, float] | None = None
+            ) -> tuple[float, list[str], tuple[float, float]]:
+    """mu from a slide's recorded contact forces, with a 95 % interval: the simulated slip
+    probe's reading, and a robot log's (``food-fetch estimate --traces``); raises
+    :class:`EstimationError` when the trace cannot give it.
 
     Coulomb friction bounds the force ratio |F_t| / F_n by mu, and reaches it only while the
     blades slide.  A soft or round piece stick-slips under the blades (the ratio swings
@@ -148,19 +167,25 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
     on the log scale, the estimator's own (noise) interval and what noise added to the
     envelope, the
     gap between the plateau and the envelope and between the two half-spoons (model error),
-    and ``PROBE_SYSTEMATIC_SD['mu']``.  ``noise`` (with ``rng``) adds white noise of that
-    share of each force trace's peak first.  ``diagnostics`` (where
-    given) receives the slide's (:func:`_mu_diagnostics`).
+    and ``PROBE_SYSTEMATIC_SD['mu']``.  ``diagnostics`` (where given) receives the slide's
+    (:func:`_mu_diagnostics`).
+
+    Args:
+        t: sample times [s], increasing.
+        forces: each of :data:`SLIP_FORCES` [N], one sample per time: each half-spoon's
+            normal force (pressing, positive) and tangential force along the slide.
+        slide: which samples belong to the slide (boolean, one per sample).
+        settle: which samples come before the blades touch the piece, where the forces'
+            true value is zero, so that their spread is the sensor's noise (read by the
+            noise-aware envelopes); None, or fewer than 5 samples, reads without that
+            correction, with a warning.
     """
-    _check_run_args(result, "slip", noise, rng)
     require(isinstance(envelope, str) and envelope in SLIP_ENVELOPES, "envelope", envelope,
             f"one of {SLIP_ENVELOPES}")
-    tr = result.traces
-    slide = tr["phase"] == PHASE_CODE["slide"]
     if not slide.any():
         raise EstimationError("the slip run has no slide phase")
-    keys = ("normal_left", "tangential_left", "normal_right", "tangential_right")
-    f = {k: _noisy(tr[k], noise, rng) for k in keys}
+    keys = SLIP_FORCES
+    f = forces
     idx = np.flatnonzero(slide)
     late = idx[len(idx) // 4:]
     normal = f["normal_left"][late] + f["normal_right"][late]
@@ -173,7 +198,7 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
     by_blade = envelope != "sum"
     noise_sd = None
     if envelope in ("per_blade_denoised", "per_blade_slipping", "per_blade_simex"):
-        noise_sd = _settle_noise(tr["phase"], f)
+        noise_sd = _settle_noise(settle, f)
         if noise_sd is None:
             warns.append("fewer than 5 samples before the blades touch: the envelope is not "
                          "corrected for sensor noise")
@@ -193,7 +218,7 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
                      "forces' envelope")
     env, noise_share = ((float(np.quantile(ratio, ENVELOPE_QUANTILE)), 0.0)
                         if per_blade is None else per_blade)
-    plateau, est = _plateau(tr["t"], f, keys, float(tr["t"][slide][0]), by_blade, warns)
+    plateau, est = _plateau(t, f, keys, float(t[slide][0]), by_blade, warns)
     # Read at the slipping level (noise present), the envelope is already the level a
     # steady slide sits at, from the same samples as the plateau, so the plateau is no
     # second reading (on the 256 tuning foods with 1 % noise letting it override moved mu's
@@ -333,12 +358,12 @@ def _level_rule() -> LevelRule:
                      iterations=SLIPPING_ITERATIONS, min_share=NOISY_SLIP_MIN_SHARE)
 
 
-def _settle_noise(phase: np.ndarray, f: dict[str, np.ndarray]) -> dict[str, float] | None:
-    """Each force trace's sd over the settle phase, before the blades touch the food (its
-    true forces are zero there, so what it reads is the sensor's noise); None where fewer
-    than 5 settle samples exist."""
-    settle = phase == PHASE_CODE["settle"]
-    if settle.sum() < 5:
+def _settle_noise(settle: np.ndarray | None, f: dict[str, np.ndarray]
+                  ) -> dict[str, float] | None:
+    """Each force trace's sd over the ``settle`` samples, before the blades touch the food
+    (its true forces are zero there, so what it reads is the sensor's noise); None where
+    fewer than 5 such samples exist."""
+    if settle is None or settle.sum() < 5:
         return None
     return {k: float(np.std(v[settle])) for k, v in f.items()}
 
