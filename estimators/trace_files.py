@@ -94,6 +94,8 @@ class RecordedTraces:
             fit and its time is counted from here (None: every sample, time as recorded).
         slide_start: time the slide starts, s (None: the friction estimator finds it).
         source: where each value came from, e.g. ``{"L": "geometry.L in the file"}``.
+        phases: the names of ``phase``'s codes, in order (a JSON file's own ``phases``, else
+            :data:`PHASES`).
     """
 
     path: str
@@ -110,6 +112,7 @@ class RecordedTraces:
     clamp_start: float | None
     slide_start: float | None
     source: Mapping[str, str]
+    phases: tuple[str, ...] = PHASES
 
     @property
     def probes(self) -> tuple[str, ...]:
@@ -119,6 +122,14 @@ class RecordedTraces:
             for name, cols in (("relaxation", RELAXATION_COLUMNS), ("slip", SLIP_COLUMNS))
             if all(getattr(self, c) is not None for c in cols)
         )
+
+    def in_phase(self, name: str) -> Array | None:
+        """Which samples the ``phase`` column marks as phase ``name`` (a boolean array), or
+        None where the file has no phase column, no such phase or no sample in it."""
+        if self.phase is None or name not in self.phases:
+            return None
+        marked = self.phase == self.phases.index(name)
+        return marked if marked.any() else None
 
     def relaxation_inputs(self) -> tuple[Array, Array, Array, ClampGeometry]:
         """``(t, theta, M, geometry)`` for the viscoelastic estimators: from ``clamp_start`` on,
@@ -199,7 +210,7 @@ def load_traces(
                           normal_left=cols["normal_left"], normal_right=cols["normal_right"],
                           tangential_left=cols["tangential_left"],
                           tangential_right=cols["tangential_right"], phase=cols["phase"],
-                          geometry=geometry, source=source, **starts)
+                          geometry=geometry, source=source, phases=table.phases, **starts)
 
 
 # ----------------------------------------------------------------------------- reading

@@ -16,7 +16,12 @@ import pytest
 from numpy.testing import assert_allclose
 
 from agents.cli.estimate import NAMES
-from agents.cli.traces import SlipReading, estimate_recorded
+from agents.cli.traces import (
+    SlipReading,
+    estimate_recorded,
+    settle_samples,
+    slide_samples,
+)
 from estimators import (
     ClampGeometry,
     EstimationError,
@@ -191,20 +196,12 @@ def test_a_noisy_stick_slip_log_is_read_at_its_slipping_level(
     (``clamp_start`` and ``slide_start`` lines mark it): the default reading is the one the
     simulated probe takes of the same forces and lands within 1.5 % of mu; the study's
     plateau reads the sticking level, over 10 % low, with an interval that misses mu."""
-    rng = np.random.default_rng(11)
-    n_settle, n_slide = 30, 200
-    ratio = np.where(np.arange(n_slide) % 10 < 3, MU, 0.7 * MU)  # slips 3 samples in 10
-    t = 0.005 * np.arange(n_settle + n_slide)
-    normal_l = np.r_[np.zeros(n_settle), np.full(n_slide, 1.0)]
-    normal_r = np.r_[np.zeros(n_settle), np.full(n_slide, 1.2)]
-    clean = {"normal_left": normal_l, "tangential_left": normal_l * np.r_[np.zeros(n_settle),
-                                                                            ratio],
-             "normal_right": normal_r, "tangential_right": normal_r * np.r_[np.zeros(n_settle),
-                                                                             ratio]}
-    noisy = {k: v + 0.01 * float(np.abs(v).max()) * rng.standard_normal(v.size)
-             for k, v in clean.items()}
+    n_settle = 30
+    cols = _stick_slip_log(n_settle=n_settle)
+    t = cols["t"]
+    noisy = {k: cols[k] for k in FORCES}
     slide_start = float(t[n_settle])
-    path = write_csv(tmp_path / "robot_slip.csv", {"t": t, **noisy},
+    path = write_csv(tmp_path / "robot_slip.csv", cols,
                      meta={"clamp_start": float(t[n_settle - 1]), "slide_start": slide_start})
     r = estimate_json(path, capsys)
     expected = read_mu(t, noisy, t >= slide_start, t < t[n_settle - 1], "per_blade_simex")
@@ -216,6 +213,88 @@ def test_a_noisy_stick_slip_log_is_read_at_its_slipping_level(
     assert study["estimate"]["mu"] < 0.9 * MU
     lo, hi = study["interval"]["mu"]
     assert not lo <= MU <= hi
+
+
+def _stick_slip_log(n_settle: int = 30, n_slide: int = 200, n_after: int = 0,
+                    noise: float = 0.01) -> dict[str, np.ndarray]:
+    """A stick-slipping slide (3 samples in 10 at mu, the rest at 0.7 mu) after ``n_settle``
+    samples before contact and before ``n_after`` samples of release (forces zero), with
+    white noise of ``noise`` of each force's peak; 5 ms samples."""
+    rng = np.random.default_rng(11)
+    ratio = np.where(np.arange(n_slide) % 10 < 3, MU, 0.7 * MU)
+    t = 0.005 * np.arange(n_settle + n_slide + n_after)
+    cols: dict[str, np.ndarray] = {"t": t}
+    for side, press in (("left", 1.0), ("right", 1.2)):
+        normal = np.r_[np.zeros(n_settle), np.full(n_slide, press), np.zeros(n_after)]
+        cols[f"normal_{side}"] = normal
+        cols[f"tangential_{side}"] = normal * np.r_[np.zeros(n_settle), ratio,
+                                                    np.zeros(n_after)]
+    for k in FORCES:
+        cols[k] = cols[k] + noise * float(np.abs(cols[k]).max()) * rng.standard_normal(t.size)
+    return cols
+
+
+def test_the_slide_and_the_samples_before_contact_from_phases_and_metadata(
+        tmp_path: Path) -> None:
+    """The slide is phase ``slide`` from ``slide_start`` on (samples after it are a release,
+    not the slide); the noise is read from phase ``settle`` and from the samples before
+    ``clamp_start`` alike; a phase column without a slide, and no ``slide_start``, marks
+    none."""
+    cols = _stick_slip_log(n_settle=30, n_slide=200, n_after=40)
+    t = cols["t"]
+    phase = np.r_[np.full(30, PHASES.index("clamp")), np.full(200, PHASES.index("slide")),
+                  np.full(40, PHASES.index("hold"))]
+    # no settle code: the samples before clamp_start are the ones before contact
+    traces = load_traces(write_csv(tmp_path / "a.csv", {**cols, "phase": phase},
+                                   meta={"clamp_start": float(t[30]),
+                                         "slide_start": float(t[50])}))
+    slide = slide_samples(traces)
+    assert slide is not None and int(slide.sum()) == 180 and not slide[230:].any()
+    settle = settle_samples(traces)
+    assert settle is not None and int(settle.sum()) == 30
+    got = estimate_recorded(traces)
+    assert isinstance(got.friction, SlipReading)
+    assert not any("before the blades touch" in w for w in got.friction.warnings)
+    assert_allclose(got.friction.mu, MU, rtol=0.015)
+    no_slide = np.where(phase == PHASES.index("slide"), PHASES.index("hold"), phase)
+    traces = load_traces(write_csv(tmp_path / "b.csv", {**cols, "phase": no_slide}))
+    assert slide_samples(traces) is None and settle_samples(traces) is not None
+    got = estimate_recorded(traces)
+    assert got.notes and "marks no slide" in got.notes[0] and not got.friction.reliable
+
+
+@pytest.mark.parametrize(("slide", "settle", "fragment"), [
+    (np.ones(10, dtype=int), None, "slide must be a boolean array"),
+    (np.ones(9, dtype=bool), None, "slide must be a boolean array"),
+    (np.ones(10, dtype=bool), [True] * 10, "settle must be a boolean array"),
+])
+def test_read_mu_refuses_masks_that_are_not_one_boolean_a_sample(
+        slide: Any, settle: Any, fragment: str) -> None:
+    from fetch_env.errors import InvalidParameterError
+
+    t = np.arange(10.0)
+    with pytest.raises(InvalidParameterError, match=fragment):
+        read_mu(t, {k: np.ones(10) for k in FORCES}, slide, settle)
+    with pytest.raises(InvalidParameterError, match="holding 'normal_left'"):
+        read_mu(t, {}, np.ones(10, dtype=bool), None)
+
+
+def test_a_recorded_slide_is_never_called_reliable(tmp_path: Path) -> None:
+    """Its interval holds the probes' systematic 2 % of mu (log sd), at least +-4 % wide,
+    and the uncalibrated rule is +-2.5 %; even a noise-free steady slide is not reliable."""
+    cols = _stick_slip_log(noise=0.0)
+    steady = {k: (v if not k.startswith("tangential") else
+                  np.where(cols[k.replace("tangential", "normal")] > 0,
+                           MU * cols[k.replace("tangential", "normal")], 0.0))
+              for k, v in cols.items()}
+    traces = load_traces(write_csv(tmp_path / "steady.csv", steady,
+                                   meta={"clamp_start": float(cols["t"][30]),
+                                         "slide_start": float(cols["t"][30])}))
+    got = estimate_recorded(traces).friction
+    assert isinstance(got, SlipReading)
+    assert_allclose(got.mu, MU, rtol=1e-9)
+    lo, hi = got.interval
+    assert min(hi / got.mu - 1, 1 - lo / got.mu) >= 0.038 and not got.reliable
 
 
 def test_a_slide_the_file_does_not_mark_is_read_by_the_study_estimator(
@@ -423,6 +502,10 @@ def test_bad_file_is_one_line_exit_2(
     (["--traces", "{good}", "--contact-angle", "0.03"],
      "--contact-angle 0.03 rad must be in [0, 0.024) rad"),
     (["--traces", "{good}", "--contact-angle", "-0.001"], "--contact-angle -0.001 rad must be"),
+    (["--mu-reading", "study"], "--mu-reading needs --traces FILE"),
+    (["--traces", "{good}", "--mu-reading", "study"],
+     "--mu-reading is for a slip trace, and none is estimated here"),
+    (["--traces", "{good}", "--mu-reading", "plateau"], "invalid choice: 'plateau'"),
 ], ids=lambda v: v if isinstance(v, str) else " ".join(v))
 def test_bad_option_is_one_line_exit_2(
     args: list[str], fragment: str, tmp_path: Path, capsys: pytest.CaptureFixture[str],

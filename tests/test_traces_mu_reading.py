@@ -47,12 +47,12 @@ def test_the_slipping_level_reads_every_food_closer_than_the_study_plateau(
     """What the page says of the committed run: the default reading reads every food, with
     a smaller 90th percentile error than the study's plateau, intervals that cover mu on at
     least 90 % of the foods where the plateau's cover it on at most 54 %, and no food called
-    reliable that is more than 5 % off (the plateau calls 2-7 such foods reliable)."""
-    new, old = _row(slide, noise, "slipping"), _row(slide, noise, "study")
-    assert new["failed"] == 0 and new["foods"] == 64
-    assert new["p90"] < old["p90"] / 2
-    assert new["coverage"] >= 0.9 and old["coverage"] <= 0.54
-    assert new["reliable_misses"] == 0 and old["reliable_misses"] >= 2
+    reliable (the plateau calls 2-7 foods more than 5 % off reliable)."""
+    slipping, plateau = _row(slide, noise, "slipping"), _row(slide, noise, "study")
+    assert slipping["failed"] == 0 and slipping["foods"] == 64
+    assert slipping["p90"] < plateau["p90"] / 2
+    assert slipping["coverage"] >= 0.9 and plateau["coverage"] <= 0.54
+    assert slipping["reliable"] == 0 and plateau["reliable_misses"] >= 2
 
 
 def test_one_food_measured_again_gives_the_committed_readings() -> None:
@@ -63,11 +63,11 @@ def test_one_food_measured_again_gives_the_committed_readings() -> None:
     committed = [r for r in COMMITTED["records"] if r["food"] == 0]
     assert len(again) == len(committed) == len(SLIDES) * len(NOISES)
     rtol = committed_rtol(1e-9)
-    for new, old in zip(again, committed, strict=True):
-        assert (new["slide"], new["noise"]) == (old["slide"], old["noise"])
+    for measured, kept in zip(again, committed, strict=True):
+        assert (measured["slide"], measured["noise"]) == (kept["slide"], kept["noise"])
         for reading in ("slipping", "study"):
-            if "failed" in old[reading]:
-                assert "failed" in new[reading]
+            if "failed" in kept[reading]:
+                assert "failed" in measured[reading]
                 continue
-            assert math.isclose(new[reading]["mu"], old[reading]["mu"], rel_tol=rtol,
-                                abs_tol=0.0), (new["slide"], new["noise"], reading)
+            assert math.isclose(measured[reading]["mu"], kept[reading]["mu"], rel_tol=rtol,
+                                abs_tol=0.0), (measured["slide"], measured["noise"], reading)

@@ -36,7 +36,7 @@ from agents.cli.common import (
 )
 from fetch_env.clipping import message as clip_message
 from fetch_env.clipping import record as clip_record
-from fetch_env.probes import nominal_stiffness
+from fetch_env.probes import ProbeRuns, nominal_stiffness
 from fetch_env.study_probes import (
     RELAXATION_DEFAULTS,
     SIM_CLAMP_WEIGHT,
@@ -247,15 +247,18 @@ def run_measure(args: argparse.Namespace, pieces: tuple[Any, ...], material: Any
             f"{calibration.form}, fitted on {calibration.n_foods} reference foods")}
     out.details["probes"] = {k: v for k, v in res.details.items() if k != "uncalibrated"}
     out.details["uncalibrated"] = res.details.get("uncalibrated")
-    out.details["wall_time"] = res.wall_time if runs is None else time.perf_counter() - start
+    out.details["wall_time"] = time.perf_counter() - start  # the probes, fits and twin
     return out
 
 
-def _twin_truth(runs: Any) -> dict[str, float]:
+def _twin_truth(runs: ProbeRuns) -> dict[str, float]:
     """The elastic twin's truth that ``simulate_probes(truth=True)`` ran, or the error it
     raised, raised again here."""
     if isinstance(runs.truth, BaseException):
         raise runs.truth
+    if runs.truth is None:
+        raise ValueError("these probe runs were simulated without the elastic twin "
+                         "(simulate_probes(..., truth=True))")
     return dict(runs.truth)
 
 

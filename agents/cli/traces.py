@@ -23,7 +23,7 @@ import argparse
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -40,7 +40,6 @@ from estimators import (
     estimate_three_step,
     load_traces,
 )
-from estimators.trace_files import PHASES
 from fetch_env.slip_simex import FORCES as SLIP_FORCES
 from fetch_env.study_probes import SIM_CLAMP_WEIGHT
 
@@ -48,6 +47,9 @@ from fetch_env.study_probes import SIM_CLAMP_WEIGHT
 TRACE_OPTIONS = frozenset({"traces", "L", "theta_0", "contact_angle", "probe", "method",
                            "mu_reading", "json"})
 PROG = "food-fetch estimate"
+# How mu is read from a recorded slide (estimate_recorded's mu_reading).
+MuReading = Literal["slipping", "study"]
+MU_READINGS: tuple[MuReading, ...] = ("slipping", "study")
 
 
 class _NoteGiven(argparse._StoreAction):
@@ -97,16 +99,14 @@ def add_traces_options(p: argparse.ArgumentParser) -> None:
                    "plateau of the ratio) (default: slipping)")
 
 
-# How mu is read from a recorded slide (estimate_recorded's mu_reading).
-MU_READINGS = ("slipping", "study")
-
-
 @dataclass
 class SlipReading:
     """mu read from a recorded slide by :func:`fetch_env.probes.read_mu`: its 95 % interval
-    (noise and model error), whether it counts as reliable (the interval within
-    ``fetch_env.probes.RELIABLE_HALF_WIDTH`` of mu, the uncalibrated probes' rule), the
-    reading's warnings and its diagnostics."""
+    (noise and model error), whether it counts as reliable, the reading's warnings and its
+    diagnostics.  Reliable follows the uncalibrated probes' rule (the interval within
+    ``fetch_env.probes.RELIABLE_HALF_WIDTH`` of mu), which a recorded slide does not meet:
+    its interval always holds the probes' systematic 2 % (``PROBE_SYSTEMATIC_SD["mu"]``, a
+    half-width of at least 4 %), since nothing calibrates the robot that logged it."""
 
     mu: float
     interval: tuple[float, float]
@@ -146,15 +146,15 @@ def probes_to_run(traces: RecordedTraces, probe: str) -> tuple[str, ...]:
 
 def estimate_recorded(
     traces: RecordedTraces, *, method: str = "full", probe: str = "both",
-    contact_angle: float | None = None, mu_reading: str = "slipping"
+    contact_angle: float | None = None, mu_reading: MuReading = "slipping"
 ) -> RecordedEstimates:
     """Run the estimators on recorded traces: the one place that picks them.  The clamp as
     the study's simulated probes run it (the full fit with the simulator's clamp weight, or
     the three-step method); the slide by ``mu_reading``: "slipping", mu as the simulated
     probes read it (:func:`read_recorded_mu`; where the file marks no slide, the study's
-    estimator, with a note), or "study", the study's friction estimator.  An estimator's
-    failure is kept in ``failures``, not raised.  ``contact_angle`` [rad], where known, is
-    the full fit's first-contact angle.
+    estimator, with a note, never reliable), or "study", the study's friction estimator.
+    An estimator's failure is kept in ``failures``, not raised.  ``contact_angle`` [rad],
+    where known, is the full fit's first-contact angle.
 
     Raises:
         ValueError: an unknown method, probe name or mu reading, or a contact angle with the
@@ -185,38 +185,44 @@ def estimate_recorded(
         out.fit_time = time.perf_counter() - t0
     if "slip" in run:
         slide = slide_samples(traces) if mu_reading == "slipping" else None
-        if mu_reading == "slipping" and slide is None:
-            out.notes.append("the file marks no slide (no phase column or slide_start): mu "
-                             "read by the study's plateau, which finds the slide itself")
+        fallback = mu_reading == "slipping" and slide is None
+        if fallback:
+            out.notes.append("the file marks no slide (no phase 'slide' or slide_start): mu "
+                             "read by the study's plateau, which finds the slide itself; not "
+                             "reliable")
         try:
-            out.friction = (read_recorded_mu(traces, slide) if slide is not None
-                            else estimate_friction(*traces.slip_inputs(),
-                                                   slide_start=traces.slide_start))
+            if slide is not None:
+                out.friction = read_recorded_mu(traces, slide)
+            else:
+                out.friction = estimate_friction(*traces.slip_inputs(),
+                                                 slide_start=traces.slide_start)
+                out.friction.reliable &= not fallback
         except caught as exc:
             out.failures["slip"] = f"{type(exc).__name__}: {exc}"
     return out
 
 
 def slide_samples(traces: RecordedTraces) -> np.ndarray | None:
-    """Which samples of a recorded run are its slide: from ``slide_start`` on where the file
-    gives it (as the study's estimator reads it), else phase ``slide`` of the phase column;
-    None where it has neither."""
+    """Which samples of a recorded run are its slide: those the phase column marks
+    ``slide``, from ``slide_start`` on (a log may go on after the slide: a release, a
+    lift); without such a column, every sample from ``slide_start`` on; None where the file
+    marks no slide."""
+    marked = traces.in_phase("slide")
     if traces.slide_start is not None:
-        return traces.t >= traces.slide_start
-    if traces.phase is not None:
-        return traces.phase == PHASES.index("slide")
-    return None
+        after = traces.t >= traces.slide_start
+        marked = after if marked is None else marked & after
+    return marked if marked is not None and marked.any() else None
 
 
 def settle_samples(traces: RecordedTraces) -> np.ndarray | None:
     """The samples before the blades touch the piece, whose force readings are the sensor's
-    noise alone: phase ``settle`` of the phase column, else those before ``clamp_start``;
-    None where the file has neither."""
-    if traces.phase is not None:
-        return traces.phase == PHASES.index("settle")
+    noise alone: those the phase column marks ``settle`` and those before ``clamp_start``;
+    None where the file marks neither."""
+    marked = traces.in_phase("settle")
     if traces.clamp_start is not None:
-        return traces.t < traces.clamp_start
-    return None
+        before = traces.t < traces.clamp_start
+        marked = before if marked is None else marked | before
+    return marked
 
 
 def read_recorded_mu(traces: RecordedTraces, slide: np.ndarray) -> SlipReading:
@@ -225,15 +231,17 @@ def read_recorded_mu(traces: RecordedTraces, slide: np.ndarray) -> SlipReading:
     the level it slips at, the lower of the two, less the bias the sensor's noise puts into
     it (the noise read from :func:`settle_samples`; without them, uncorrected, with a
     warning).  Raises :class:`estimators.EstimationError` when the slide gives no mu."""
-    from fetch_env.probes import RELIABLE_HALF_WIDTH, read_mu
+    # imported here: the probes' package loads MuJoCo, which a file without a slide
+    # (a relaxation log) never needs
+    from fetch_env.probes import read_mu
+    from fetch_env.probes.results import within_half_width
 
     t, *forces = traces.slip_inputs()
     named = dict(zip(SLIP_FORCES, forces, strict=True))
     diagnostics: dict[str, float] = {}
-    mu, warns, (lo, hi) = read_mu(t, named, slide, settle_samples(traces), "per_blade_simex",
+    mu, warns, interval = read_mu(t, named, slide, settle_samples(traces), "per_blade_simex",
                                   diagnostics)
-    reliable = max(hi / mu - 1.0, 1.0 - lo / mu) <= RELIABLE_HALF_WIDTH
-    return SlipReading(mu, (lo, hi), reliable, warns, diagnostics)
+    return SlipReading(mu, interval, within_half_width(mu, interval), warns, diagnostics)
 
 
 def to_probe_estimate(traces: RecordedTraces, got: RecordedEstimates) -> ProbeEstimate:
@@ -280,6 +288,13 @@ def check_trace_options(args: argparse.Namespace) -> None:
                          "three-step method reads the contact angle off the trace")
 
 
+def _check_mu_reading(reading: str | None, traces: RecordedTraces, probe: str) -> None:
+    """Refuse a ``--mu-reading`` that no slide of the run would use."""
+    if reading is not None and "slip" not in probes_to_run(traces, probe):
+        raise UsageError(f"{PROG}: --mu-reading is for a slip trace, and none is estimated "
+                         "here")
+
+
 def _check_contact_angle(angle: float | None, traces: RecordedTraces, probe: str) -> None:
     """Refuse a known contact angle that no relaxation trace can use: negative, or not below
     the largest hinge angle the trace reached (no squeeze past it)."""
@@ -301,6 +316,7 @@ def cmd_estimate_traces(args: argparse.Namespace) -> int:
     try:
         traces = load_traces(args.traces, L=args.L, theta_0=args.theta_0)
         _check_contact_angle(args.contact_angle, traces, args.probe)
+        _check_mu_reading(args.mu_reading, traces, args.probe)
         got = estimate_recorded(traces, method=args.method, probe=args.probe,
                                 contact_angle=args.contact_angle,
                                 mu_reading=args.mu_reading or "slipping")

@@ -55,11 +55,9 @@ class ProbeOutcome:
             return False
         widths = self.details.get("reliable_half_width") or {}
         for name in ("g1", "tau1", "mu"):
-            lo, hi = self.intervals.get(name, (math.nan, math.nan))
-            v = self.estimates[name]
-            if not (math.isfinite(lo) and math.isfinite(hi) and v > 0):
-                return False
-            if max(hi / v - 1.0, 1.0 - lo / v) > widths.get(name, RELIABLE_HALF_WIDTH):
+            if not within_half_width(self.estimates[name],
+                                     self.intervals.get(name, (math.nan, math.nan)),
+                                     widths.get(name, RELIABLE_HALF_WIDTH)):
                 return False
         return not self.diagnostics_past_limits()
 
@@ -80,6 +78,16 @@ class ProbeOutcome:
             if not abs(v) <= limit:
                 past.append(f"{name}={v:.3g}")
         return past
+
+
+def within_half_width(value: float, interval: tuple[float, float],
+                      half_width: float = RELIABLE_HALF_WIDTH) -> bool:
+    """Whether ``interval`` is finite and lies within ``half_width`` (a share) of a positive
+    ``value`` on both sides."""
+    lo, hi = interval
+    if not (math.isfinite(lo) and math.isfinite(hi) and value > 0):
+        return False
+    return max(hi / value - 1.0, 1.0 - lo / value) <= half_width
 
 
 def _add_cpu(out: ProbeOutcome, key: str, start: float) -> None:

@@ -124,7 +124,7 @@ class ProbeRuns:
     slides: tuple[Any, ...]
     # the piece's elastic-twin truth (true_parameters_exact) or the error it raised, where
     # simulate_probes ran it beside the probes (truth=True); None where it did not
-    truth: Any = None
+    truth: dict[str, float] | BaseException | None = None
 
     def check_for(self, piece: Piece, config: ProbeConfig, geometry: Geometry | None) -> None:
         """Raise :class:`InvalidParameterError` unless these are the simulations of

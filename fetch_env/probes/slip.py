@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -146,7 +147,7 @@ def estimate_mu(result: SimResult, noise: float = 0.0, rng: np.random.Generator 
                    tr["phase"] == PHASE_CODE["settle"], envelope, diagnostics)
 
 
-def read_mu(t: np.ndarray, forces: dict[str, np.ndarray], slide: np.ndarray,
+def read_mu(t: np.ndarray, forces: Mapping[str, np.ndarray], slide: np.ndarray,
             settle: np.ndarray | None, envelope: SlipEnvelope = "per_blade_simex",
             diagnostics: dict[str, float] | None = None
             ) -> tuple[float, list[str], tuple[float, float]]:
@@ -179,17 +180,26 @@ def read_mu(t: np.ndarray, forces: dict[str, np.ndarray], slide: np.ndarray,
             true value is zero, so that their spread is the sensor's noise (read by the
             noise-aware envelopes); None, or fewer than 5 samples, reads without that
             correction, with a warning.
+
+    Raises:
+        EstimationError: no sample marked as the slide, or a slide that gives no mu.
+        InvalidParameterError: a force missing, or a mask that is not a boolean array of
+            one value per sample.
     """
     require(isinstance(envelope, str) and envelope in SLIP_ENVELOPES, "envelope", envelope,
             f"one of {SLIP_ENVELOPES}")
+    for name in SLIP_FORCES:
+        require(name in forces, "forces", sorted(forces), f"holding {name!r}")
+    for name, mask in (("slide", slide), ("settle", settle)):
+        require((mask is None and name == "settle") or (
+            isinstance(mask, np.ndarray) and mask.dtype == bool and mask.shape == t.shape),
+            name, type(mask).__name__, f"a boolean array of one value per sample {t.shape}")
     if not slide.any():
-        raise EstimationError("the slip run has no slide phase")
-    keys = SLIP_FORCES
-    f = forces
+        raise EstimationError("no sample is marked as the slide")
     idx = np.flatnonzero(slide)
     late = idx[len(idx) // 4:]
-    normal = f["normal_left"][late] + f["normal_right"][late]
-    tang = f["tangential_left"][late] + f["tangential_right"][late]
+    normal = forces["normal_left"][late] + forces["normal_right"][late]
+    tang = forces["tangential_left"][late] + forces["tangential_right"][late]
     grip = normal > 0.05 * max(float(normal.max()), 1e-12)
     if grip.sum() < 5:
         raise EstimationError("no steady grip during the slide (the blades lost the piece)")
@@ -198,18 +208,18 @@ def read_mu(t: np.ndarray, forces: dict[str, np.ndarray], slide: np.ndarray,
     by_blade = envelope != "sum"
     noise_sd = None
     if envelope in ("per_blade_denoised", "per_blade_slipping", "per_blade_simex"):
-        noise_sd = _settle_noise(settle, f)
+        noise_sd = _settle_noise(settle, forces)
         if noise_sd is None:
             warns.append("fewer than 5 samples before the blades touch: the envelope is not "
                          "corrected for sensor noise")
     slipping = envelope in ("per_blade_slipping", "per_blade_simex")
-    per_blade = (_per_blade_envelope(f, late, grip, noise_sd, slipping=slipping)
+    per_blade = (_per_blade_envelope(forces, late, grip, noise_sd, slipping=slipping)
                  if by_blade else None)
     if envelope == "per_blade_simex" and per_blade is not None and noise_sd is not None \
             and max(noise_sd.values()) > 0:
         # the noise share (per_blade[1], for mu's interval) stays the uncorrected level's:
         # the error model fitted on such readings sizes what the extrapolation leaves
-        per_blade, why = _extrapolated(f, late, keys, noise_sd, per_blade)
+        per_blade, why = _extrapolated(forces, late, SLIP_FORCES, noise_sd, per_blade)
         if why:
             warns.append(f"the slipping level's noise bias was not extrapolated ({why}): mu "
                          "read without the correction")
@@ -218,7 +228,7 @@ def read_mu(t: np.ndarray, forces: dict[str, np.ndarray], slide: np.ndarray,
                      "forces' envelope")
     env, noise_share = ((float(np.quantile(ratio, ENVELOPE_QUANTILE)), 0.0)
                         if per_blade is None else per_blade)
-    plateau, est = _plateau(t, f, keys, float(t[slide][0]), by_blade, warns)
+    plateau, est = _plateau(t, forces, SLIP_FORCES, float(t[slide][0]), by_blade, warns)
     # Read at the slipping level (noise present), the envelope is already the level a
     # steady slide sits at, from the same samples as the plateau, so the plateau is no
     # second reading (on the 256 tuning foods with 1 % noise letting it override moved mu's
