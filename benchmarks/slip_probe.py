@@ -13,7 +13,7 @@ preset's slip probe with some of those settings changed; the last three are the
 half-spoons' envelopes (``per_blade``) and, where sensor noise is added, also less what
 the noise adds (``per_blade_denoised``) and refined to the level the ratio slips at
 (``per_blade_slipping``), and that level less the bias the noise leaves in it,
-extrapolated away (``per_blade_simex``, ``fetch_env.slip_simex``: the ``precise``
+extrapolated away (``per_blade_simex``, ``estimators.slip_simex``: the ``precise``
 preset's).
 
     python benchmarks/slip_probe.py --n 512 --workers 2

@@ -15,7 +15,7 @@ the food), is written as the CSV a robot logs (``t``, the four contact forces, `
 ``docs/traces_format.md``), read back with :func:`estimators.load_traces` and estimated by
 :func:`agents.cli.traces.estimate_recorded` with each ``mu_reading``: "slipping" (the
 default: each half-spoon's force ratio at the level it slips at, less the noise's bias,
-:func:`fetch_env.probes.read_mu`) and "study" (the study's plateau,
+:func:`estimators.slip_level.read_mu`) and "study" (the study's plateau,
 :func:`estimators.estimate_friction`).  Nothing here is tuned: the readings' constants were
 chosen on the tuning foods' probe slides.
 
@@ -41,12 +41,12 @@ from agents.cli.estimate import adaptive_angle
 from agents.cli.traces import MU_READINGS, estimate_recorded
 from benchmarks.readme_meta import meta, rewrite_block, write_json
 from estimators import load_traces
+from estimators.slip_level import SLIP_FORCES as FORCES
 from fetch_env.controller import FetchAction, FetchSimulator, SimResult
 from fetch_env.food_space import REPORTING_SEED, Food, sample_foods
 from fetch_env.parallel import run_ahead
 from fetch_env.probes import PROBE_PRESETS, slip_run
 from fetch_env.probes.traces import _noisy
-from fetch_env.slip_simex import FORCES
 from fetch_env.study_probes import SLIP_DEFAULTS
 
 ROOT = Path(__file__).resolve().parents[1]

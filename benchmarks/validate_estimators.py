@@ -578,7 +578,7 @@ class Reliability(TypedDict, total=False):
 # 19-20 and 27-30 (4 and 7 %) but leaves a mu miss over 5 % to the interval alone.  With
 # three slides the rule was 0.015 and 0.02, flagging 34-36 of 451 calm and, on the first
 # 256 noisy tuning foods, 22-23 of 191-194 (12 %); before mu's noise bias was extrapolated
-# away (fetch_env.slip_simex) and noisy traces had a model of their own, 37-43 of 174-177
+# away (estimators.slip_simex) and noisy traces had a model of their own, 37-43 of 174-177
 # noisy foods (21-24 %).
 _PRECISE_WIDTHS = {"g1": 0.1, "tau1": 0.1, "mu": 0.12}
 _PRECISE_LIMITS = {"repeat_sd_log_g1": 0.03, "repeat_sd_log_tau1": 0.06,

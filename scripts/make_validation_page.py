@@ -434,7 +434,7 @@ def slip_probe_section() -> str:
             "the noise lifts into the slipping window), so the `precise` preset reads it "
             "less that bias, measured on the trace by simulation-extrapolation (copies of "
             "the slide with more noise of the sensor's own kind, their levels extrapolated "
-            "back to none; `per_blade_simex`, `fetch_env.slip_simex`): "
+            "back to none; `per_blade_simex`, `estimators.slip_simex`): "
             f"{_mpm(noisy['noise_simex'])} (three slides: {_mpm(noisy_three)}; two more "
             "slides average more of the noise away, and their spread tells the foods the "
             "noise pushed far from the ones it did not, below).  "

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import estimators.slip_level as slip_level
 from benchmarks import validate_estimators as ve
 from estimators.friction import MIN_SAMPLES
 from fetch_env.controller import PHASE_CODE, FetchAction, SimResult
@@ -26,7 +27,6 @@ from fetch_env.probes import (
     SLIP_ENVELOPES,
     ProbeConfig,
     estimate_mu,
-    slip,
     slip_run,
 )
 
@@ -194,7 +194,7 @@ def test_a_bouncing_piece_is_read_from_its_firmly_pressed_samples(
     level takes off: read from every gripping sample (share 0) mu comes out high (measured
     mean +16 %); from the firmly pressed ones its mean is within 0.5 % (measured +0.15 %)
     and its median |error| under 0.5 % (measured 0.21 %)."""
-    monkeypatch.setattr(slip, "NOISY_SLIP_MIN_SHARE", share)
+    monkeypatch.setattr(slip_level, "NOISY_SLIP_MIN_SHARE", share)
     run = _bouncing_slip()
     errors = np.array([estimate_mu(run, 0.01, np.random.default_rng(seed),
                                    envelope="per_blade_slipping")[0] / MU - 1

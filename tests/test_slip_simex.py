@@ -1,5 +1,5 @@
 """mu's slipping level with the bias of sensor noise extrapolated away (``per_blade_simex``,
-:mod:`fetch_env.slip_simex`): the many-copy reading is the one-trace reading, nothing changes
+:mod:`estimators.slip_simex`): the many-copy reading is the one-trace reading, nothing changes
 without noise, and the bias that sticking samples just below mu put into a noisy level is
 mostly taken out, on synthetic slides and on the tuning foods' probes."""
 
@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+import estimators.slip_level as slip_level
+from estimators.slip_simex import FORCES, Simex, simex_level, slipping_levels
 from fetch_env.controller import PHASE_CODE, SimResult
 from fetch_env.probes import estimate_mu, slip
-from fetch_env.slip_simex import FORCES, Simex, simex_level, slipping_levels
 from tests.test_slip_envelope import MU, N_SLIDE, _bouncing_slip, _stick_slip, synthetic_slip
 
 DATA = Path(__file__).resolve().parents[1] / "docs" / "data" / "validation"
@@ -35,7 +36,7 @@ def _late_slide(run: SimResult, noise: float, seed: int
     rng = np.random.default_rng(seed)
     f = {k: slip._noisy(run.traces[k], noise, rng) for k in FORCES}
     idx = np.flatnonzero(run.traces["phase"] == PHASE_CODE["slide"])
-    noise_sd = slip._settle_noise(run.traces["phase"] == PHASE_CODE["settle"], f)
+    noise_sd = slip_level._settle_noise(run.traces["phase"] == PHASE_CODE["settle"], f)
     assert noise_sd is not None
     return f, idx[len(idx) // 4:], noise_sd
 
@@ -52,13 +53,13 @@ def test_many_copies_read_as_one_trace(make: object) -> None:
         f, late, noise_sd = _late_slide(run, 0.01, seed)
         normal = f["normal_left"][late] + f["normal_right"][late]
         grip = normal > 0.05 * normal.max()
-        one = slip._per_blade_envelope(f, late, grip, noise_sd, slipping=True)
+        one = slip_level._per_blade_envelope(f, late, grip, noise_sd, slipping=True)
         assert one is not None
         rows.append(({k: f[k][late] for k in FORCES}, noise_sd, one[0]))
     # rows of one length (each kind of slide has one), each its own draw, read together
     many = slipping_levels({k: np.stack([r[0][k] for r in rows]) for k in FORCES},
                            {k: np.array([r[1][k] for r in rows]) for k in FORCES},
-                           slip._level_rule())
+                           slip_level._level_rule())
     assert_allclose(many, [r[2] for r in rows], rtol=1e-12)
     assert np.unique(many).size == len(rows)
 
@@ -69,7 +70,7 @@ def test_a_copy_that_loses_its_grip_reads_nan() -> None:
     copies = {k: np.stack([f[k][late]] * 2) for k in FORCES}
     copies["normal_right"][1, 3:] = 0.0  # the second copy's right face lets go
     levels = slipping_levels(copies, {k: np.full(2, noise_sd[k]) for k in FORCES},
-                             slip._level_rule())
+                             slip_level._level_rule())
     assert np.isfinite(levels[0]) and np.isnan(levels[1])
 
 
@@ -101,7 +102,7 @@ def _simex_one_lambda_at_a_time(forces: dict[str, np.ndarray], noise_sd: dict[st
         copies = {k: forces[k][None, :] + rng.normal(0.0, np.sqrt(lam) * noise_sd[k],
                                                      (simex.replicates, m)) for k in FORCES}
         sd = {k: np.full(simex.replicates, np.sqrt(1.0 + lam) * noise_sd[k]) for k in FORCES}
-        read = slipping_levels(copies, sd, slip._level_rule())
+        read = slipping_levels(copies, sd, slip_level._level_rule())
         read = read[np.isfinite(read)]
         if read.size:
             sds.append(float(np.sqrt(1.0 + lam)))
@@ -118,7 +119,7 @@ def test_reading_every_copy_at_once_is_reading_them_lambda_by_lambda(simex: Sime
         run = synthetic_slip(_near_stick(rng), _near_stick(rng, low=0.9))
         f, late, noise_sd = _late_slide(run, 0.01, seed)
         forces = {k: f[k][late] for k in FORCES}
-        assert (simex_level(forces, noise_sd, MU, slip._level_rule(), simex)
+        assert (simex_level(forces, noise_sd, MU, slip_level._level_rule(), simex)
                 == _simex_one_lambda_at_a_time(forces, noise_sd, MU, simex))
 
 
@@ -160,7 +161,7 @@ def test_copies_that_lose_their_grip_give_no_extrapolation() -> None:
     f, late, noise_sd = _late_slide(run, 0.01, 0)
     forces = {k: f[k][late] for k in FORCES}
     loud = {k: 1.0 for k in FORCES}
-    rule = slip._level_rule()
+    rule = slip_level._level_rule()
     assert simex_level(forces, loud, MU, rule, Simex(lambdas=(1.0, 2.0), replicates=1)) is None
     assert simex_level(forces, noise_sd, MU, rule) is not None
 
@@ -173,7 +174,7 @@ def test_estimate_mu_says_when_it_could_not_extrapolate(monkeypatch: pytest.Monk
                          _near_stick(np.random.default_rng(2)))
     plain = estimate_mu(run, 0.01, np.random.default_rng(4), envelope="per_blade_slipping")[0]
     for returned, why in ((None, "lost their grip"), (-0.01, "extrapolated to -0.01")):
-        monkeypatch.setattr(slip, "simex_level", lambda *a, r=returned, **k: r)
+        monkeypatch.setattr(slip_level, "simex_level", lambda *a, r=returned, **k: r)
         mu, warns, _ = estimate_mu(run, 0.01, np.random.default_rng(4),
                                    envelope="per_blade_simex")
         assert mu == plain
@@ -193,7 +194,7 @@ def test_bad_traces_are_refused_before_any_copy() -> None:
     run = synthetic_slip(np.full(N_SLIDE, MU), np.full(N_SLIDE, MU))
     f, late, noise_sd = _late_slide(run, 0.01, 0)
     forces = {k: f[k][late] for k in FORCES}
-    rule = slip._level_rule()
+    rule = slip_level._level_rule()
     with pytest.raises(ValueError, match="noise sds"):
         simex_level(forces, dict.fromkeys(FORCES, 0.0), MU, rule)
     with pytest.raises(ValueError, match="noise sds"):

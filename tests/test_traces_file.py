@@ -33,9 +33,9 @@ from estimators import (
     load_traces,
     moment_trace,
 )
+from estimators.slip_level import read_mu
 from estimators.sls import clamp_angle
 from estimators.trace_files import MIN_SAMPLES, PHASES
-from fetch_env.probes import read_mu
 from fetch_env.study_probes import SIM_CLAMP_WEIGHT, relaxation_traces
 from tests.cli_helpers import assert_one_line_error, run_cli
 
@@ -270,12 +270,10 @@ def test_the_slide_and_the_samples_before_contact_from_phases_and_metadata(
 ])
 def test_read_mu_refuses_masks_that_are_not_one_boolean_a_sample(
         slide: Any, settle: Any, fragment: str) -> None:
-    from fetch_env.errors import InvalidParameterError
-
     t = np.arange(10.0)
-    with pytest.raises(InvalidParameterError, match=fragment):
+    with pytest.raises(EstimationError, match=fragment):
         read_mu(t, {k: np.ones(10) for k in FORCES}, slide, settle)
-    with pytest.raises(InvalidParameterError, match="holding 'normal_left'"):
+    with pytest.raises(EstimationError, match="missing normal_left"):
         read_mu(t, {}, np.ones(10, dtype=bool), None)
 
 

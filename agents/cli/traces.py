@@ -5,7 +5,7 @@ read by :func:`estimators.load_traces` and estimated by :func:`estimate_recorded
 place that picks the estimators: for the clamp, as the study's probes of ``food-fetch
 estimate --probes study`` do (the full fit with the same clamp weight, or the three-step
 method); for the slide, by default mu as the simulated probes read it
-(:func:`fetch_env.probes.read_mu`: each half-spoon's force ratio at the level it slips at,
+(:func:`estimators.slip_level.read_mu`: each half-spoon's force ratio at the level it slips at,
 less the bias the sensor's noise puts into it), which holds on stick-slipping and noisy
 slides where the study's plateau (:func:`estimators.estimate_friction`, ``mu_reading=
 "study"``) reads a sticking level.  The ``precise`` probes' other readings (seven clamps'
@@ -40,7 +40,8 @@ from estimators import (
     estimate_three_step,
     load_traces,
 )
-from fetch_env.slip_simex import FORCES as SLIP_FORCES
+from estimators.slip_level import SLIP_FORCES, read_mu
+from fetch_env.probes.results import within_half_width
 from fetch_env.study_probes import SIM_CLAMP_WEIGHT
 
 # Options of ``estimate`` that keep their meaning with --traces (argparse dests).
@@ -101,7 +102,7 @@ def add_traces_options(p: argparse.ArgumentParser) -> None:
 
 @dataclass
 class SlipReading:
-    """mu read from a recorded slide by :func:`fetch_env.probes.read_mu`: its 95 % interval
+    """mu read from a recorded slide by :func:`estimators.slip_level.read_mu`: its 95 % interval
     (noise and model error), whether it counts as reliable, the reading's warnings and its
     diagnostics.  Reliable follows the uncalibrated probes' rule (the interval within
     ``fetch_env.probes.RELIABLE_HALF_WIDTH`` of mu), which a recorded slide does not meet:
@@ -227,15 +228,10 @@ def settle_samples(traces: RecordedTraces) -> np.ndarray | None:
 
 def read_recorded_mu(traces: RecordedTraces, slide: np.ndarray) -> SlipReading:
     """mu from a recorded slide as the simulated slip probe reads its own
-    (:func:`fetch_env.probes.read_mu`, ``per_blade_simex``): each half-spoon's force ratio at
+    (:func:`estimators.slip_level.read_mu`, ``per_blade_simex``): each half-spoon's force ratio at
     the level it slips at, the lower of the two, less the bias the sensor's noise puts into
     it (the noise read from :func:`settle_samples`; without them, uncorrected, with a
     warning).  Raises :class:`estimators.EstimationError` when the slide gives no mu."""
-    # imported here: the probes' package loads MuJoCo, which a file without a slide
-    # (a relaxation log) never needs
-    from fetch_env.probes import read_mu
-    from fetch_env.probes.results import within_half_width
-
     t, *forces = traces.slip_inputs()
     named = dict(zip(SLIP_FORCES, forces, strict=True))
     diagnostics: dict[str, float] = {}
@@ -333,8 +329,12 @@ def cmd_estimate_traces(args: argparse.Namespace) -> int:
     geom = traces.geometry
     geometry = (f"L {geom.L:g} m ({traces.source['L']}), theta_0 {geom.theta_0:g} rad "
                 f"({traces.source['theta_0']})" if geom is not None else "no geometry")
+    read = {"slipping": "mu at each half-spoon's slipping level",
+            "study": "mu by the study's plateau"}
+    slip = result.details.get("slip", {}).get("reading")
     print(f"recorded traces {traces.path}: {traces.t.size} samples, "
-          f"{' and '.join(probes_to_run(traces, args.probe))} data; {geometry}")
+          f"{' and '.join(probes_to_run(traces, args.probe))} data; {geometry}"
+          + (f"; {read[slip]}" if slip in read else ""))
     print_report(result)
     if args.json is not None:
         write_json(args.json, result.to_dict())

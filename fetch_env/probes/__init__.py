@@ -68,6 +68,14 @@ public name is importable from ``fetch_env.probes`` itself.
 
 from __future__ import annotations
 
+from estimators.slip_level import (
+    ENVELOPE_QUANTILE,
+    NOISE_QUANTILE_Z,
+    NOISY_SLIP_MIN_SHARE,
+    SLIP_SIMEX,
+    SLIPPING_ITERATIONS,
+    SLIPPING_TAIL,
+)
 from fetch_env.probes.calibrated import (
     CALIBRATION_FILE,
     PROBE_CALIBRATIONS,
@@ -102,17 +110,7 @@ from fetch_env.probes.relaxation import (
 )
 from fetch_env.probes.results import RELIABLE_HALF_WIDTH, ProbeOutcome
 from fetch_env.probes.run import ProbeRuns, run_probes, simulate_probes
-from fetch_env.probes.slip import (
-    ENVELOPE_QUANTILE,
-    NOISE_QUANTILE_Z,
-    NOISY_SLIP_MIN_SHARE,
-    SLIP_SIMEX,
-    SLIPPING_ITERATIONS,
-    SLIPPING_TAIL,
-    estimate_mu,
-    read_mu,
-    slip_run,
-)
+from fetch_env.probes.slip import estimate_mu, slip_run
 from fetch_env.probes.truth import (
     TWIN_MAX_LOST_SHARE,
     TWIN_SHIFTS,
@@ -160,7 +158,6 @@ __all__ = [
     "nominal_stiffness",
     "probe_angle",
     "probe_piece_index",
-    "read_mu",
     "reads_drift",
     "relaxation_run",
     "repeat_strains",

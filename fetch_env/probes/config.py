@@ -9,6 +9,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from estimators.slip_level import MU_SYSTEMATIC_SD, SLIP_ENVELOPES, SlipEnvelope
 from fetch_env.controller import check_relaxation_contact_ratio
 from fetch_env.errors import require, require_finite, require_type
 from fetch_env.layouts import Piece
@@ -33,15 +34,12 @@ PARAM_NAMES: tuple[str, ...] = ("K1", "K2", "B", "mu", "g1", "tau1")
 # K1 + K2 part (the "repeated" one), those of K1, K2 and B; these sds hold for the rest and
 # for uncalibrated probes.
 PROBE_SYSTEMATIC_SD: dict[str, float] = {"K1": 0.14, "K2": 0.10, "B": 0.11, "g1": 0.010,
-                                         "tau1": 0.004, "mu": 0.02}
+                                         "tau1": 0.004, "mu": MU_SYSTEMATIC_SD}
 
 
 # How the slip probe's envelope reads the half-spoons' force ratios (ProbeConfig.slip_envelope;
-# each kind and the evidence it was chosen on: fetch_env.probes.slip).
-SlipEnvelope = Literal["sum", "per_blade", "per_blade_denoised", "per_blade_slipping",
-                       "per_blade_simex"]
-SLIP_ENVELOPES: tuple[SlipEnvelope, ...] = ("sum", "per_blade", "per_blade_denoised",
-                                            "per_blade_slipping", "per_blade_simex")
+# each kind and the evidence it was chosen on: estimators.slip_level): SlipEnvelope,
+# SLIP_ENVELOPES, imported above.
 
 
 # Where K1, K2 and B take the clamp's first-contact angle from (ProbeConfig.contact_angle):

@@ -69,7 +69,7 @@ PROBE_PRESETS: dict[str, ProbeConfig] = {
     # gripping sample, 0.77 / 2.8 / 4.1 / 19 % and 1.50 / 4.5 / 5.6 / 16 %).  That level
     # still reads mu low under noise (mean -1.1 %: sticking samples just below mu that the
     # noise lifts into the slipping window), so the preset reads it less that bias,
-    # extrapolated away ("per_blade_simex", fetch_env.slip_simex): 0.40 / 1.5 / 1.8 / 3.1 %,
+    # extrapolated away ("per_blade_simex", estimators.slip_simex): 0.40 / 1.5 / 1.8 / 3.1 %,
     # mean -0.17 %, on the same slides with one noise draw each.
     #
     # Five slides rather than three (the next two of slide_times: 0.675 and 0.133 s, about
