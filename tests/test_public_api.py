@@ -8,10 +8,12 @@ import importlib
 import subprocess
 import sys
 import types
+from pathlib import Path
 
 import pytest
 
 PACKAGES = ("estimators", "fetch_env")
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _public_names(module: types.ModuleType) -> set[str]:
@@ -52,6 +54,18 @@ def test_star_import_of_fetch_env_leaves_mujoco_unloaded() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     assert out.startswith("False ")
+
+
+def test_no_estimators_module_loads_the_simulator() -> None:
+    """Every module of ``estimators`` (the code that reads a robot's logs) imports without
+    MuJoCo, the simulator or the agents."""
+    modules = sorted(p.stem for p in (ROOT / "estimators").glob("*.py") if p.stem != "__init__")
+    code = (f"import sys, importlib; [importlib.import_module('estimators.' + m) for m in "
+            f"{modules!r}]; print(sorted({{m.split('.')[0] for m in sys.modules}} & "
+            "{'mujoco', 'fetch_env', 'agents'}))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=ROOT).stdout
+    assert "slip_level" in modules and out.strip() == "[]"
 
 
 def test_estimators_star_import_gives_the_estimators() -> None:
