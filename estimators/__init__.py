@@ -13,6 +13,9 @@ Modules (units: s, rad, m, N, N m; see docs/study.md for eqs. 1-7):
   :func:`estimate_from_hold` gives them (and ``g1, tau1``) from the hold alone, for clamps
   that do not rise as an SLS would.
 * :mod:`estimators.friction` -- ``mu`` by induced slippage: :func:`estimate_friction`.
+* :mod:`estimators.slip_level` -- ``mu`` from a slide's forces as the simulated probes
+  read it: each half-spoon's force ratio at its slipping level, less the noise's bias
+  (:func:`~estimators.slip_level.read_mu`, with :mod:`estimators.slip_simex`).
 * :mod:`estimators.errors` -- :class:`EstimationError` (a ``ValueError``) for unusable input.
 """
 

@@ -162,9 +162,9 @@ def read_mu(t: np.ndarray, forces: Mapping[str, np.ndarray], slide: np.ndarray,
             correction, with a warning.
 
     Raises:
-        EstimationError: no sample marked as the slide, or a slide that gives no mu.
-        EstimationError: also a force missing, or a mask that is not a boolean array of
-            one value per sample.
+        EstimationError: an unknown envelope, a force missing or not one value per sample, a
+            mask that is not a boolean array of one value per sample, no sample marked as
+            the slide, or a slide that gives no mu.
     """
     _check_reading_args(t, forces, slide, settle, envelope)
     if not slide.any():
@@ -231,9 +231,9 @@ def _plateau(t: np.ndarray, f: dict[str, np.ndarray], keys: tuple[str, ...],
              ) -> tuple[float, FrictionEstimate | None]:
     """``estimate_friction``'s plateau of the slide (the lower half-spoon's where
     ``by_blade``) and its estimate, or NaN and None where it gives none (why, in ``warns``).
-    A slide with fewer samples than its plateau test reads (``MIN_SAMPLES``; the env's
-    0.15 s slide at a 10 ms step has 15) is read from its envelope alone, as it was designed
-    to be, without a warning."""
+    A slide with fewer samples than its plateau test reads (``MIN_SAMPLES``; e.g. the
+    environments' 0.15 s probe slide at a 10 ms step, 15 samples) is read from its envelope
+    alone, without a warning."""
     if int(np.count_nonzero(t >= slide_start)) < FRICTION_MIN_SAMPLES:
         return math.nan, None
     try:
@@ -385,7 +385,7 @@ def _mu_log_parts(mu: float, est: Any, envelope: float, noise_share: float = 0.0
 def _mu_sd_log(mu: float, est: Any, envelope: float, noise_share: float = 0.0) -> float:
     """Log-sd of mu: the noise (the friction estimator's interval, what sensor noise added
     to the envelope), and the disagreement of the plateau with the envelope and of the two
-    half-spoons (see :func:`estimate_mu`)."""
+    half-spoons (see :func:`read_mu`)."""
     if est is None:  # the envelope alone: no check of it
         return math.hypot(abs(math.log(envelope / mu)) + 0.05, noise_share)
     return float(np.sqrt(np.sum(np.square(_mu_log_parts(mu, est, envelope, noise_share)))))
@@ -401,6 +401,11 @@ def _check_reading_args(t: np.ndarray, forces: Mapping[str, np.ndarray], slide: 
     if missing:
         raise EstimationError(f"forces must hold {', '.join(SLIP_FORCES)}; missing "
                               f"{', '.join(missing)}")
+    for name in SLIP_FORCES:
+        shape = np.shape(forces[name])
+        if shape != t.shape:
+            raise EstimationError(f"forces[{name!r}] must hold one value per sample {t.shape}, "
+                                  f"got shape {shape}")
     for name, mask in (("slide", slide), ("settle", settle)):
         if mask is None and name == "settle":
             continue

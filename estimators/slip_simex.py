@@ -1,7 +1,8 @@
 """mu's slipping level freed of the bias sensor noise puts into it: simulation-extrapolation.
 
 With sensor noise the slip probe reads mu as the level each half-spoon's force ratio sits at
-while its face slips (:data:`fetch_env.probes.SLIP_ENVELOPES`, ``per_blade_slipping``): the
+while its face slips (:data:`estimators.slip_level.SLIP_ENVELOPES`, ``per_blade_slipping``):
+the
 mean of the samples above the level less ``SLIPPING_TAIL`` noise sds.  Noise spreads the
 sticking samples just below mu into that window too, so the level reads low, and the more
 so the larger the noise: on the 512 tuning foods with 1 % noise mu came out 1.1 % low on
@@ -18,8 +19,8 @@ line in the sd.  Its extra randomness is drawn from its own seeded generator, so
 is reproducible and leaves the caller's noise draws alone.
 
 :func:`slipping_levels` reads many copies at once (one row each); it returns, row by row,
-the level :func:`fetch_env.probes.estimate_mu` reads from one trace with noise (NaN where the
-faces do not both grip on 5 samples, where estimate_mu falls back to the summed forces'
+the level :func:`estimators.slip_level.read_mu` reads from one trace with noise (NaN where
+the faces do not both grip on 5 samples, where read_mu falls back to the summed forces'
 envelope), which the tests check against the one-trace code.
 """
 
@@ -36,7 +37,7 @@ FORCES = tuple(f"{kind}_{side}" for side in SIDES for kind in ("normal", "tangen
 
 @dataclass(frozen=True)
 class LevelRule:
-    """How a slipping level is read (the constants of :mod:`fetch_env.probes`).
+    """How a slipping level is read (the constants of :mod:`estimators.slip_level`).
 
     Attributes:
         quantile: the envelope's quantile of the force ratio (``ENVELOPE_QUANTILE``).

@@ -88,7 +88,7 @@ class RecordedTraces:
         moment_left, moment_right: each half-spoon's moment, N m (None likewise).
         normal_left, normal_right, tangential_left, tangential_right: contact forces, N
             (None without slip data).
-        phase: phase codes (index in :data:`PHASES`), or None.
+        phase: phase codes (index in ``phases``), or None.
         geometry: the clamp geometry, None only when there is no relaxation data.
         clamp_start: time the clamp starts, s; earlier samples are left out of the relaxation
             fit and its time is counted from here (None: every sample, time as recorded).

@@ -275,6 +275,9 @@ def test_read_mu_refuses_masks_that_are_not_one_boolean_a_sample(
         read_mu(t, {k: np.ones(10) for k in FORCES}, slide, settle)
     with pytest.raises(EstimationError, match="missing normal_left"):
         read_mu(t, {}, np.ones(10, dtype=bool), None)
+    short = {k: np.ones(10 if k != "tangential_right" else 9) for k in FORCES}
+    with pytest.raises(EstimationError, match=r"forces\['tangential_right'\] must hold one"):
+        read_mu(t, short, np.ones(10, dtype=bool), None)
 
 
 def test_a_recorded_slide_is_never_called_reliable(tmp_path: Path) -> None:

@@ -106,8 +106,9 @@ class SlipReading:
     (noise and model error), whether it counts as reliable, the reading's warnings and its
     diagnostics.  Reliable follows the uncalibrated probes' rule (the interval within
     ``fetch_env.probes.RELIABLE_HALF_WIDTH`` of mu), which a recorded slide does not meet:
-    its interval always holds the probes' systematic 2 % (``PROBE_SYSTEMATIC_SD["mu"]``, a
-    half-width of at least 4 %), since nothing calibrates the robot that logged it."""
+    its interval always holds the probes' systematic 2 %
+    (``estimators.slip_level.MU_SYSTEMATIC_SD``, a half-width of at least 4 %), since
+    nothing calibrates the robot that logged it."""
 
     mu: float
     interval: tuple[float, float]

@@ -59,10 +59,11 @@ The package, one idea a module: :mod:`~fetch_env.probes.config` (the settings an
 repeats they imply), :mod:`~fetch_env.probes.presets` (the named settings),
 :mod:`~fetch_env.probes.placement` (which piece, at what angle),
 :mod:`~fetch_env.probes.relaxation` and :mod:`~fetch_env.probes.slip` (the two probes and
-their fits), :mod:`~fetch_env.probes.truth` (the true values),
-:mod:`~fetch_env.probes.calibrated` (the shipped calibrations), :mod:`~fetch_env.probes.run`
-(both probes on one piece) and :mod:`~fetch_env.probes.results` (what they return).  Every
-public name is importable from ``fetch_env.probes`` itself.
+their fits; each slide's mu is read by :mod:`estimators.slip_level`),
+:mod:`~fetch_env.probes.truth` (the true values), :mod:`~fetch_env.probes.calibrated` (the
+shipped calibrations), :mod:`~fetch_env.probes.run` (both probes on one piece) and
+:mod:`~fetch_env.probes.results` (what they return).  Every public name is importable from
+``fetch_env.probes`` itself.
 """
 
 

@@ -9,6 +9,8 @@ from typing import Any, Literal
 
 import numpy as np
 
+# how the slip probe's envelope reads the half-spoons' force ratios (ProbeConfig.slip_envelope),
+# each kind with the evidence it was chosen on, and mu's systematic sd
 from estimators.slip_level import MU_SYSTEMATIC_SD, SLIP_ENVELOPES, SlipEnvelope
 from fetch_env.controller import check_relaxation_contact_ratio
 from fetch_env.errors import require, require_finite, require_type
@@ -37,9 +39,6 @@ PROBE_SYSTEMATIC_SD: dict[str, float] = {"K1": 0.14, "K2": 0.10, "B": 0.11, "g1"
                                          "tau1": 0.004, "mu": MU_SYSTEMATIC_SD}
 
 
-# How the slip probe's envelope reads the half-spoons' force ratios (ProbeConfig.slip_envelope;
-# each kind and the evidence it was chosen on: estimators.slip_level): SlipEnvelope,
-# SLIP_ENVELOPES, imported above.
 
 
 # Where K1, K2 and B take the clamp's first-contact angle from (ProbeConfig.contact_angle):
