@@ -16,7 +16,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from estimators.errors import EstimationError
+from estimators.errors import EstimationError, check_traces, mapping
 from estimators.friction import MIN_SAMPLES as FRICTION_MIN_SAMPLES
 from estimators.friction import FrictionEstimate, estimate_friction
 from estimators.slip_simex import FORCES as SLIP_FORCES
@@ -162,11 +162,12 @@ def read_mu(t: np.ndarray, forces: Mapping[str, np.ndarray], slide: np.ndarray,
             correction, with a warning.
 
     Raises:
-        EstimationError: an unknown envelope, a force missing or not one value per sample, a
-            mask that is not a boolean array of one value per sample, no sample marked as
-            the slide, or a slide that gives no mu.
+        EstimationError: an unknown envelope; a force missing, or times and forces that
+            :func:`estimators.errors.check_traces` refuses (at least 10 samples); a mask
+            that is not a boolean array of one value per sample; no sample marked as the
+            slide, or a slide that gives no mu.
     """
-    _check_reading_args(t, forces, slide, settle, envelope)
+    t, forces, slide, settle = _checked_inputs(t, forces, slide, settle, envelope)
     if not slide.any():
         raise EstimationError("no sample is marked as the slide")
     idx = np.flatnonzero(slide)
@@ -391,25 +392,28 @@ def _mu_sd_log(mu: float, est: Any, envelope: float, noise_share: float = 0.0) -
     return float(np.sqrt(np.sum(np.square(_mu_log_parts(mu, est, envelope, noise_share)))))
 
 
-def _check_reading_args(t: np.ndarray, forces: Mapping[str, np.ndarray], slide: Any,
-                        settle: Any, envelope: Any) -> None:
-    """Refuse an unknown envelope, a missing force, or a mask that is not a boolean array of
-    one value per sample (the settle mask may be None)."""
+def _checked_inputs(t: Any, forces: Any, slide: Any, settle: Any, envelope: Any
+                    ) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray, np.ndarray | None]:
+    """``(t, forces, slide, settle)`` checked (:func:`estimators.errors.check_traces`: finite
+    1-D numbers, one a sample, time strictly increasing, at least 10 samples; the masks
+    boolean arrays of one value a sample, ``settle`` possibly None), or the
+    :class:`EstimationError` naming what is wrong; an unknown ``envelope`` too."""
     if not (isinstance(envelope, str) and envelope in SLIP_ENVELOPES):
         raise EstimationError(f"envelope must be one of {SLIP_ENVELOPES}, got {envelope!r:.40}")
-    missing = [name for name in SLIP_FORCES if name not in forces]
+    named = mapping("forces", forces)
+    missing = [name for name in SLIP_FORCES if name not in named]
     if missing:
         raise EstimationError(f"forces must hold {', '.join(SLIP_FORCES)}; missing "
                               f"{', '.join(missing)}")
-    for name in SLIP_FORCES:
-        shape = np.shape(forces[name])
-        if shape != t.shape:
-            raise EstimationError(f"forces[{name!r}] must hold one value per sample {t.shape}, "
-                                  f"got shape {shape}")
+    tt, checked = check_traces(t, **{k: named[k] for k in SLIP_FORCES})
+    masks: list[np.ndarray | None] = []
     for name, mask in (("slide", slide), ("settle", settle)):
         if mask is None and name == "settle":
+            masks.append(None)
             continue
-        if not (isinstance(mask, np.ndarray) and mask.dtype == bool and mask.shape == t.shape):
+        if not (isinstance(mask, np.ndarray) and mask.dtype == bool and mask.shape == tt.shape):
             raise EstimationError(f"{name} must be a boolean array of one value per sample "
-                                  f"{t.shape}, got {type(mask).__name__} "
+                                  f"{tt.shape}, got {type(mask).__name__} "
                                   f"{getattr(mask, 'dtype', '')} {getattr(mask, 'shape', '')}")
+        masks.append(mask)
+    return tt, checked, masks[0], masks[1]

@@ -340,8 +340,9 @@ def _public(module_name: str, names: list[str] | None = None) -> list[tuple[str,
 
 ESTIMATOR_FUNCTIONS = [f for m in ("estimators", "estimators.sls", "estimators.relaxation",
                                    "estimators.friction", "estimators.calibration",
-                                   "estimators.uncertainty", "estimators.trace_files")
-                       for f in _public(m)]
+                                   "estimators.uncertainty", "estimators.trace_files",
+                                   "estimators.slip_simex")
+                       for f in _public(m)] + _public("estimators.slip_level", ["read_mu"])
 FETCH_ENV_FUNCTIONS = [
     *_public("fetch_env.materials", ["Material", "preset"]),
     *_public("fetch_env.layouts", ["Piece", "single_block", "grid", "single_row", "two_rows",

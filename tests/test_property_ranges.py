@@ -48,6 +48,7 @@ from estimators import (
     moment_trace,
     steady_moment,
 )
+from estimators.slip_level import SLIP_FORCES, read_mu
 from estimators.sls import clamp_angle
 from fetch_env import layouts, spaces
 from fetch_env.controller import FetchAction, FetchSimulator, SimResult, TimeScale
@@ -946,6 +947,11 @@ def test_estimators_on_arbitrary_finite_traces(
     estimate_or_typed(lambda: estimate_from_hold(t, m, GEOM, min(abs(t_d), 0.5), 0.6,
                                                  omega or 0.1, t_d, settle), HoldEstimate)
     estimate_or_typed(lambda: estimate_friction(t, theta, m, m, theta), FrictionEstimate)
+    forces = {"normal_left": m, "tangential_left": theta, "normal_right": m,
+              "tangential_right": theta}
+    half = t >= (t[t.size // 2] if t.size else 0.0)
+    estimate_or_typed(lambda: read_mu(t, forces, half, ~half), tuple)
+    estimate_or_typed(lambda: read_mu(t, forces, half, None, "sum"), tuple)
 
 
 BASE = np.arange(0.0, 3.0, 0.01)
@@ -983,7 +989,8 @@ def bad_traces(draw: st.DrawFn) -> tuple[str, np.ndarray | Any, np.ndarray | Any
 
 
 @examples(150)
-@given(bad_traces(), st.sampled_from(["three_step", "full_fit", "from_hold", "friction"]))
+@given(bad_traces(), st.sampled_from(["three_step", "full_fit", "from_hold", "friction",
+                                     "slip_level"]))
 def test_estimators_refuse_bad_traces(bad: tuple[str, Any, Any], which: str) -> None:
     """Every documented trace defect is exactly an EstimationError, whichever estimator."""
     _, t, y = bad
@@ -992,6 +999,8 @@ def test_estimators_refuse_bad_traces(bad: tuple[str, Any, Any], which: str) -> 
         "full_fit": lambda: estimate_full_fit(t, y, y, GEOM),
         "from_hold": lambda: estimate_from_hold(t, y, GEOM, 0.001, 0.02, 0.1, 0.2),
         "friction": lambda: estimate_friction(t, y, y, y, y),
+        "slip_level": lambda: read_mu(t, dict.fromkeys(SLIP_FORCES, y),
+                                      np.ones(np.shape(t), dtype=bool), None),
     }
     with pytest.raises(EstimationError) as exc_info:
         quietly(calls[which])
