@@ -19,6 +19,11 @@ default: each half-spoon's force ratio at the level it slips at, less the noise'
 :func:`estimators.estimate_friction`).  Nothing here is tuned: the readings' constants were
 chosen on the tuning foods' probe slides.
 
+Each food's readings are appended to ``<out>.jsonl`` (flushed) as the food finishes, so a
+run stopped by Ctrl-C, SIGTERM or a dead worker keeps what finished; ``--resume`` runs only
+the foods not yet there.  The JSON (and with ``--docs`` the table) is written, atomically,
+once every food has finished.
+
 Run: python benchmarks/traces_mu_reading.py --n 64 --workers 2 \\
          --out docs/data/traces_mu_reading.json --docs
 """
@@ -26,6 +31,7 @@ Run: python benchmarks/traces_mu_reading.py --n 64 --workers 2 \\
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 import tempfile
@@ -40,11 +46,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from agents.cli.estimate import adaptive_angle
 from agents.cli.traces import MU_READINGS, estimate_recorded
 from benchmarks.readme_meta import meta, rewrite_block, write_json
+from benchmarks.validate_estimators import run_streamed, stopped_exit_code
 from estimators import load_traces
 from estimators.slip_level import SLIP_FORCES as FORCES
 from fetch_env.controller import FetchAction, FetchSimulator, SimResult
 from fetch_env.food_space import REPORTING_SEED, Food, sample_foods
-from fetch_env.parallel import run_ahead
 from fetch_env.probes import PROBE_PRESETS, slip_run
 from fetch_env.probes.traces import _noisy
 from fetch_env.study_probes import SLIP_DEFAULTS
@@ -119,6 +125,29 @@ def food_records(food: Food) -> list[dict[str, Any]]:
     return records
 
 
+def food_task(food: Food) -> dict[str, Any]:
+    """``food``'s records as one line of the run's ``.jsonl`` (a worker's task); a food whose
+    readings raised is kept as ``lost``, with the error, instead of stopping the run."""
+    try:
+        return {"food": food.index, "records": food_records(food)}
+    except Exception as exc:  # kept in the results, named by its food
+        return {"food": food.index, "records": [], "lost": f"{type(exc).__name__}: {exc}"}
+
+
+def finished_foods(jsonl: Path) -> dict[int, dict[str, Any]]:
+    """The foods a stopped run's ``.jsonl`` holds, by index (a line cut short by the stop is
+    left out, so that food runs again)."""
+    done: dict[int, dict[str, Any]] = {}
+    if jsonl.exists():
+        for line in jsonl.read_text().splitlines():
+            try:
+                entry = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            done[int(entry["food"])] = entry
+    return done
+
+
 def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Per slide design, noise level and reading: foods read, failures, median / 90th
     percentile / max |error| [%], interval coverage and reliable flags (with the misses over
@@ -161,27 +190,56 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--n", type=int, default=64, help="reporting foods (default 64)")
     p.add_argument("--workers", type=int, default=1)
-    p.add_argument("--out", type=Path, default=None, help="JSON of every reading")
+    p.add_argument("--out", type=Path, default=ROOT / "docs" / "data" / "traces_mu_reading.json",
+                   help="JSON of every reading (default docs/data/traces_mu_reading.json); "
+                   "each food is streamed to the same name with .jsonl as it finishes")
+    p.add_argument("--resume", action="store_true",
+                   help="run only the foods not yet in the .jsonl of a stopped run")
     p.add_argument("--docs", action="store_true",
                    help=f"rewrite the table in {PAGE.relative_to(ROOT)}")
     args = p.parse_args(argv)
     if args.n < 1 or args.workers < 1:
         p.error(f"--n and --workers must be >= 1, got {args.n} and {args.workers}")
+    if args.out.suffix != ".json":
+        p.error(f"--out must name a .json file, got {str(args.out)!r}")
+    jsonl = args.out.with_suffix(".jsonl")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    done = finished_foods(jsonl) if args.resume else {}
+    if not args.resume:
+        jsonl.unlink(missing_ok=True)
     start = time.perf_counter()
     foods = sample_foods(args.n, REPORTING_SEED)
-    done = run_ahead([(food_records, (food,)) for food in foods], args.workers)
-    records = [r for d in done if not isinstance(d, BaseException) for r in d]
-    lost = [f"food {f.index}: {d}" for f, d in zip(foods, done, strict=True)
-            if isinstance(d, BaseException)]
+    entries = [done[f.index] for f in foods if f.index in done]
+
+    def report(i: int, entry: dict[str, Any]) -> None:
+        print(f"[{len(done) + i}/{args.n}] food {entry['food']}"
+              + (f" lost: {entry['lost']}" if "lost" in entry else ""), flush=True)
+
+    stopped = run_streamed(food_task, [(f,) for f in foods if f.index not in done],
+                           args.workers, jsonl, entries, report)
+    if stopped:
+        print(f"traces_mu_reading: {stopped}; {len(entries)} of {args.n} foods finished, kept "
+              f"in {jsonl} (rerun with --resume to finish; {args.out} not written)",
+              file=sys.stderr)
+        return stopped_exit_code(stopped)
+    entries.sort(key=lambda e: e["food"])
+    records = [r for e in entries for r in e["records"]]
+    lost = [f"food {e['food']}: {e['lost']}" for e in entries if "lost" in e]
+    return _write_outputs(args, records, lost, time.perf_counter() - start, len(done))
+
+
+def _write_outputs(args: argparse.Namespace, records: list[dict[str, Any]], lost: list[str],
+                   wall: float, resumed: int) -> int:
+    """Print the table, write the JSON and with ``--docs`` the page's table."""
     rows = summarize(records)
     text = table(rows)
     print(text)
     for line in lost:
         print(f"failed: {line}")
-    info = meta(time.perf_counter() - start)
-    if args.out is not None:
-        write_json(args.out, {"meta": info, "summary": rows, "records": records,
-                              "lost": lost})
+    info = meta(wall)
+    if resumed:
+        info["resumed_foods"] = resumed  # wall_s is this sitting's alone
+    write_json(args.out, {"meta": info, "summary": rows, "records": records, "lost": lost})
     if args.docs:
         footer = (f"{args.n} reporting foods (seed {REPORTING_SEED}); {info['machine']}, "
                   f"MuJoCo {info['mujoco']}, at {info['commit']}, {info['wall_s']:.0f} s: "

@@ -1,15 +1,18 @@
 """benchmarks/traces_mu_reading.py: the committed run behind the table of
 docs/traces_format.md ("How mu is read from a slide"), its summary recomputed from its
-records, the claims the page makes of it, and one food measured again."""
+records, the claims the page makes of it, one food measured again, and a stopped run that
+keeps its finished foods and resumes."""
 
 from __future__ import annotations
 
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import pytest
 
+import benchmarks.traces_mu_reading as bench
 from benchmarks.reproducibility import committed_rtol
 from benchmarks.traces_mu_reading import (
     BEGIN,
@@ -17,7 +20,9 @@ from benchmarks.traces_mu_reading import (
     NOISES,
     PAGE,
     SLIDES,
+    finished_foods,
     food_records,
+    food_task,
     summarize,
     table,
 )
@@ -71,3 +76,73 @@ def test_one_food_measured_again_gives_the_committed_readings() -> None:
                 continue
             assert math.isclose(measured[reading]["mu"], kept[reading]["mu"], rel_tol=rtol,
                                 abs_tol=0.0), (measured["slide"], measured["noise"], reading)
+
+
+def _fake_pool(stop_after: int | None) -> Any:
+    """A stand-in for run_streamed that "finishes" foods at once (two readings each, one
+    slide), streaming each as the real pool does, and stops after ``stop_after`` of them."""
+    def run(fn: Any, tasks: list[tuple[Any, ...]], workers: int, jsonl: Path,
+            entries: list[dict[str, Any]], report: Any) -> str:
+        with jsonl.open("a") as log:
+            for i, (food,) in enumerate(tasks):
+                if stop_after is not None and i == stop_after:
+                    return "interrupted (SIGTERM)"
+                entry = {"food": food.index, "records": [
+                    {"food": food.index, "slide": "study", "noise": noise,
+                     **{r: {"mu": food.mu, "error": 0.0, "covered": True, "reliable": False}
+                        for r in ("slipping", "study")}} for noise in NOISES]}
+                log.write(json.dumps(entry) + "\n")
+                entries.append(entry)
+                report(i + 1, entry)
+        return ""
+    return run
+
+
+def test_a_stopped_run_keeps_its_foods_and_resume_finishes_them(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Stopped after 2 of 5 foods: exit 143, the 2 in the .jsonl, no JSON written, one line
+    on stderr saying so; --resume runs only the other 3 and writes all 5 in food order."""
+    out = tmp_path / "mu.json"
+    monkeypatch.setattr(bench, "run_streamed", _fake_pool(stop_after=2))
+    assert bench.main(["--n", "5", "--out", str(out)]) == 143
+    assert not out.exists()
+    assert sorted(finished_foods(out.with_suffix(".jsonl"))) == [0, 1]
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("traces_mu_reading: interrupted (SIGTERM); 2 of 5 foods finished")
+    asked: list[int] = []
+
+    def resumed(fn: Any, tasks: list[tuple[Any, ...]], *rest: Any) -> str:
+        asked.extend(f.index for (f,) in tasks)
+        return _fake_pool(None)(fn, tasks, *rest)
+
+    monkeypatch.setattr(bench, "run_streamed", resumed)
+    assert bench.main(["--n", "5", "--out", str(out), "--resume"]) == 0
+    assert asked == [2, 3, 4]
+    written = json.loads(out.read_text())
+    assert [r["food"] for r in written["records"]] == [i for i in range(5) for _ in NOISES]
+    assert written["meta"]["resumed_foods"] == 2 and not written["lost"]
+
+
+def test_a_line_cut_short_by_a_stop_runs_again(tmp_path: Path) -> None:
+    jsonl = tmp_path / "mu.jsonl"
+    jsonl.write_text('{"food": 3, "records": []}\n{"food": 4, "rec')
+    assert sorted(finished_foods(jsonl)) == [3]
+
+
+def test_a_food_whose_readings_raise_is_kept_as_lost(monkeypatch: pytest.MonkeyPatch) -> None:
+    def boom(food: Any) -> list[dict[str, Any]]:
+        raise ValueError("bad slide")
+
+    monkeypatch.setattr(bench, "food_records", boom)
+    food = sample_foods(1, REPORTING_SEED)[0]
+    assert food_task(food) == {"food": 0, "records": [], "lost": "ValueError: bad slide"}
+
+
+@pytest.mark.parametrize("argv", [["--n", "0"], ["--workers", "0"], ["--out", "x.csv"]])
+def test_bad_options_are_refused_before_any_work(
+        argv: list[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(bench, "run_streamed", lambda *a: pytest.fail("ran"))
+    with pytest.raises(SystemExit) as exc:
+        bench.main(argv)
+    assert exc.value.code == 2
