@@ -120,9 +120,16 @@ def foods_of(name: str, n: int) -> list[Food]:
     return corner_foods()[:n]
 
 
-def food_seed(food: Food) -> int:
-    """The seed of a food's sensor noise: its own, whichever worker measures it, in any set."""
-    return 7919 * food.index + 1
+# Seeds between one noise draw of a food and the next (a prime larger than 7919 times any
+# food index, so no two (food, draw) pairs share a seed).
+NOISE_DRAW_STRIDE = 100_003
+
+
+def food_seed(food: Food, draw: int = 0) -> int:
+    """The seed of a food's sensor noise: its own, whichever worker measures it, in any set;
+    ``draw`` > 0 gives the food another noise draw (``--noise-draw``), so that a figure
+    measured with noise can be repeated over independent draws of it."""
+    return 7919 * food.index + 1 + NOISE_DRAW_STRIDE * draw
 
 
 def measure(food: Food, preset: str, noise: float, seed: int, calibrate: bool = True,
@@ -633,21 +640,25 @@ def runs_reference_range(runs: list[list[dict[str, Any]]]) -> dict[str, tuple[fl
 def cross_validate(cal_records: list[dict[str, Any]], runs: list[list[dict[str, Any]]],
                    folds: int = 8, seed: int = 0, form: str = "linear",
                    coverage: float = DEFAULT_ERROR_COVERAGE,
-                   reliability: Reliability | None = None, **fit: Any
+                   reliability: Reliability | None = None,
+                   evaluate: list[list[dict[str, Any]]] | None = None, **fit: Any
                    ) -> list[dict[str, Any]]:
     """Held-out records of each run: the foods split into ``folds`` (seeded), each fold's
     records recomputed with the calibration and error model (``coverage``,
     ``reliability`` and ``fit``'s ``f_scale`` and ``trace_features``, as
-    :func:`fit_models`) fitted on the other folds (:func:`held_out_record`)."""
+    :func:`fit_models`) fitted on the other folds (:func:`held_out_record`).  With
+    ``evaluate``, those runs' records are the ones recomputed (e.g. other noise draws of the
+    same foods, which the models are not fitted on), else ``runs``'."""
     index = sorted({r["food"]["index"] for r in cal_records})
     fold_of = dict(zip(np.random.default_rng(seed).permutation(index),
                        np.arange(len(index)) % folds, strict=True))
-    out: list[list[dict[str, Any]]] = [[] for _ in runs]
+    shown = runs if evaluate is None else evaluate
+    out: list[list[dict[str, Any]]] = [[] for _ in shown]
     for k in range(folds):
         keep = {i for i, f in fold_of.items() if f != k}
         model = fit_models(cal_records, runs, keep=keep, form=form, coverage=coverage,
                            reliability=reliability, **fit)
-        for j, run in enumerate(runs):
+        for j, run in enumerate(shown):
             out[j] += [held_out_record(r, model) for r in run
                        if "crash" not in r and fold_of.get(r["food"]["index"]) == k]
     return [summarize(run) | {"records": run} for run in out]
@@ -694,6 +705,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="probe settings (default: precise, food-fetch estimate's)")
     p.add_argument("--noise", type=float, default=0.0,
                    help="sensor noise, sd as a share of each trace's peak (default 0)")
+    p.add_argument("--noise-draw", type=int, default=0, metavar="K",
+                   help="with --noise: the K-th independent draw of each food's noise (default "
+                   "0, the one the tuning and reporting runs use); names the files _drawK")
     p.add_argument("--workers", type=int, default=1,
                    help="processes (default 1); with --ray alone, the local instance's CPUs")
     add_ray_options(p, "foods", batch_default=RAY_BATCH)
@@ -739,6 +753,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if not 1 <= args.n <= 4096 or not 0 <= args.noise <= 0.5 or args.workers < 1:
         p.error("--n in [1, 4096], --noise in [0, 0.5], --workers >= 1")
+    if not 0 <= args.noise_draw <= 1000 or (args.noise_draw and not args.noise):
+        p.error(f"--noise-draw must be in [0, 1000] and goes with --noise > 0, got "
+                f"{args.noise_draw} with --noise {args.noise:g}")
     try:
         check_ray_options("validate_estimators.py", args)
     except UsageError as exc:
@@ -749,7 +766,8 @@ def main(argv: list[str] | None = None) -> int:
         p.error("--set block holds the foods a Block calibration is fitted on: run it with "
                 "--no-calibration")
     name = args.name or (f"{args.set}_{args.preset}{'' if calibrated else '_uncal'}"
-                         f"_noise{args.noise:g}")
+                         f"_noise{args.noise:g}"
+                         + (f"_draw{args.noise_draw}" if args.noise_draw else ""))
     args.out.mkdir(parents=True, exist_ok=True)
     jsonl = args.out / f"{name}.jsonl"
     done = _done_indices(jsonl) if args.resume else {}
@@ -759,7 +777,7 @@ def main(argv: list[str] | None = None) -> int:
     seed = {"tuning": TUNING_SEED, "reporting": REPORTING_SEED, "stiff": REPORTING_SEED + 1,
             "corners": 0, "block": BLOCK_CALIBRATION_SEED}[args.set]
     meta = {"set": args.set, "n": args.n, "seed": seed, "preset": args.preset,
-            "noise": args.noise, "young_range": list(
+            "noise": args.noise, "noise_draw": args.noise_draw, "young_range": list(
                 {"stiff": STIFF_YOUNG_RANGE, "block": BLOCK_YOUNG_RANGE}.get(args.set,
                                                                            YOUNG_RANGE)),
             "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
@@ -838,7 +856,8 @@ def _run_foods(foods: list[Food], args: argparse.Namespace, calibrated: bool, js
                   f"{k} {100 * e[k]:+.2f}%" for k in ("g1", "tau1", "mu", "K1"))), flush=True)
 
     kept = getattr(args, "simulations", None)
-    tasks = [(f, args.preset, args.noise, food_seed(f), calibrated, config, geometry,
+    tasks = [(f, args.preset, args.noise, food_seed(f, getattr(args, "noise_draw", 0)),
+              calibrated, config, geometry,
               None if kept is None else str(kept)) for f in foods]
     if getattr(args, "ray", None) is not None:
         return run_streamed_on_ray(measure, tasks, args.ray, args.workers, args.ray_batch,

@@ -149,7 +149,10 @@ reporting runs say how well they hold on other foods:
   reliable, with or without noise, and of those with every error under 2 % 8.2-8.4 % are
   called unreliable without noise and 10.1-10.9 % with 1 % noise (some of them for lying
   outside their fold's reference foods, below, a range each fold draws from seven eighths
-  of the foods).  The tuning foods' harness runs
+  of the foods).  That is on the one noise draw per food the rule was chosen on; over three
+  more draws of the same foods' noise a few foods just past 5 % are called reliable (7 of
+  105 misses, 0.4 % of the readings called reliable; [the flag over four noise
+  draws](#the-flag-over-four-noise-draws)).  The tuning foods' harness runs
   hold no mu error over 5 %, so the slides' limit is set on the slides' own study (three
   noise draws of every tuning food), where it flags the one reading past 5 % and 2 of the
   3 past 4 %; readings 3-5 % off may be called reliable (1 of 2 such tuning foods without
@@ -168,8 +171,8 @@ autocorrelation, the estimates' change when the hold window moves, and a systema
 those widths and, for the `precise` probes, the repeats agree within their limits: the
 per-food error left after the calibration is predicted only roughly, so a flag that never
 calls a 5 % miss reliable is False on some foods the probe measured within 2 % (with the
-`precise` probes 6-11 % of them without noise and 8-10 % with 1 % noise on the
-reporting foods below, where mu's error is mostly the noise's, which the five slides'
+`precise` probes 6-11 % of them without noise and 8-18 % with 1 % noise, by the noise's
+draw, on the reporting foods below, where mu's error is mostly the noise's, which the five slides'
 spread shows only in part, so some foods are flagged for a spread the noise alone made).
 Nor is a food reliable that lies outside the calibration's reference foods, on either
 side, in size, K1 + K2 over size, g1, tau1 or mu
@@ -703,6 +706,130 @@ def larger_draw_section() -> str:
     return "".join(out)
 
 
+# The precise probes' runs with 1 % noise: the draw every other run uses, and three more
+# independent draws of the same foods' noise (validate_estimators.py --noise-draw K).
+NOISE_DRAWS = (0, 1, 2, 3)
+
+
+def _draw_stem(stem: str, draw: int) -> str:
+    return stem if draw == 0 else f"{stem}_draw{draw}"
+
+
+def _flag_counts(summaries: list[dict[str, Any]]) -> tuple[list[str], tuple[int, ...]]:
+    """Each draw's reliability tally as "a of b / c of d", and their totals."""
+    cells, totals = [], np.zeros(4, int)
+    for s in summaries:
+        r = s["reliability"]
+        t = (r["over_5pct_flagged_reliable"], r["n_over_5pct"],
+             r["under_2pct_flagged_unreliable"], r["n_under_2pct"])
+        totals += t
+        cells.append(f"{t[0]} of {t[1]} / {t[2]} of {t[3]}")
+    return cells, tuple(int(v) for v in totals)
+
+
+def _draw_rows(label: str, summaries: list[dict[str, Any]]) -> list[str]:
+    cells, tot = _flag_counts(summaries)
+    rows = [f"| {label} | {d} | {c} | " + " | ".join(
+        f"{100 * s[k]['coverage']:.0f} %" for k in ("g1", "tau1", "mu")) + " |"
+        for d, c, s in zip(NOISE_DRAWS, cells, summaries, strict=True)]
+    rows.append(f"| {label} | all | {tot[0]} of {tot[1]} / {tot[2]} of {tot[3]} "
+                f"({100 * tot[2] / tot[3]:.1f} %) | | | |")
+    return rows
+
+
+# A stricter rule for noisy traces, measured beside the shipped one and not adopted
+# (noise_draws_section): limits chosen on the tuning foods' four noise draws as those that
+# call no miss over 5 % reliable there and flag the fewest good foods.
+STRICT_NOISY_RULE: dict[str, dict[str, float]] = {
+    "reliable_half_width": {"g1": 0.06, "tau1": 0.08, "mu": 0.06},
+    "reliable_diagnostics": {"repeat_sd_log_g1": 0.025, "repeat_sd_log_tau1": 0.05,
+                             "drift_log_tau1": 0.085, "mu_trials": 0.05}}
+
+
+def _misses_called_reliable_words(held: list[dict[str, Any]]) -> str:
+    """The misses over 5 % called reliable in ``held``'s records: their range of largest
+    error and the parameters past 5 %."""
+    worst, params = [], {}
+    for run in held:
+        for r in run["records"]:
+            errs = {k: abs(r["error"][k]) for k in ("g1", "tau1", "mu")}
+            if r.get("reliable") and max(errs.values()) > 0.05:
+                worst.append(max(errs.values()))
+                for k, e in errs.items():
+                    if e > 0.05:
+                        params[k] = params.get(k, 0) + 1
+    if not worst:
+        return "none"
+    over = ", ".join(f"{n} in {k}" for k, n in params.items())
+    return f"{100 * min(worst):.1f}-{100 * max(worst):.1f} % off ({over})"
+
+
+def noise_draws_section() -> str:
+    """The ``reliable`` flag and the coverage with 1 % noise over four independent noise
+    draws: the reporting foods calibrated as shipped, and the tuning foods held out (the
+    calibration and error model fitted, as shipped, on the run without noise and the first
+    draw, seven eighths of the foods at a time, and applied to every draw of the rest)."""
+    rep = [_committed(_draw_stem("reporting_precise_noise0.01", d)) for d in NOISE_DRAWS]
+    tun = [_committed(_draw_stem("tuning_precise_uncal_noise0.01", d)) for d in NOISE_DRAWS]
+    calm = _committed("tuning_precise_uncal_noise0")
+    if not all(rep) or not all(tun) or calm is None:
+        return ""
+    fit_runs = [calm["records"], tun[0]["records"]]
+    held = cross_validate(calm["records"], fit_runs, coverage=error_coverage("precise"),
+                          reliability=RELIABILITY.get("precise"),
+                          evaluate=[t["records"] for t in tun],
+                          **CALIBRATION_FIT.get("precise", {}))
+    strict = cross_validate(calm["records"], fit_runs, coverage=error_coverage("precise"),
+                            reliability={**RELIABILITY["precise"], "noisy": STRICT_NOISY_RULE},
+                            evaluate=[t["records"] for t in tun],
+                            **CALIBRATION_FIT.get("precise", {}))
+    _, rep_tot = _flag_counts([r["summary"] for r in rep])
+    _, tun_tot = _flag_counts(held)
+    _, strict_tot = _flag_counts(strict)
+    lim, width = STRICT_NOISY_RULE["reliable_diagnostics"], STRICT_NOISY_RULE[
+        "reliable_half_width"]
+    lines = ["| foods | noise draw | misses > 5 % called reliable / good < 2 % flagged | "
+             "g1 coverage | tau1 coverage | mu coverage |", "|---|---|---|---|---|---|"]
+    lines += _draw_rows(f"{rep[0]['meta']['n']} reporting", [r["summary"] for r in rep])
+    lines += _draw_rows(f"{calm['meta']['n']} tuning, held out", held)
+    n_reliable = sum(sum(1 for r in h["records"] if r.get("reliable")) for h in held)
+    return (
+        "## The flag over four noise draws\n\n"
+        "Every run with noise above draws each food's noise once (its seed, "
+        "`benchmarks.validate_estimators.food_seed`).  A flag decided on near its limits "
+        "turns with the draw, so the `precise` probes' runs with 1 % noise were repeated "
+        "over three more independent draws of the same foods' noise (`--noise-draw 1`, `2`, "
+        "`3`; the simulations are the same, only the noise differs).  Reporting foods: "
+        "calibrated as shipped.  Tuning foods: held out, the calibration and its error model "
+        "fitted as shipped (on the run without noise and draw 0) on seven eighths of the "
+        "foods at a time and applied to every draw of the other eighth.\n\n"
+        + "\n".join(lines) + "\n\n"
+        f"On the reporting foods no miss over 5 % is called reliable in any draw (0 of "
+        f"{rep_tot[1]}), and the good foods flagged unreliable move with the draw around "
+        f"{100 * rep_tot[2] / rep_tot[3]:.0f} %: one draw of 64 foods measures that share "
+        "to several points.  On the tuning foods' other draws the flag calls "
+        f"{tun_tot[0]} of {tun_tot[1]} misses over 5 % reliable, "
+        f"{_misses_called_reliable_words(held)}, whose repeats agreed within their limits, "
+        f"among {n_reliable} readings called reliable ({100 * tun_tot[0] / n_reliable:.1f} "
+        "%); the draw the rule was chosen on held none.  A stricter rule for noisy traces "
+        f"(the clamps' spread of log g1 at most {lim['repeat_sd_log_g1']:g} and of log tau1 "
+        f"at most {lim['repeat_sd_log_tau1']:g}, the slides' at most {lim['mu_trials']:g}, "
+        f"intervals within +-{100 * width['g1']:g} % for g1, +-{100 * width['tau1']:g} % for "
+        f"tau1 and +-{100 * width['mu']:g} % for mu; chosen on these same draws as the rule "
+        "that calls none of their misses reliable and flags the fewest good foods), held "
+        f"out the same way, calls {strict_tot[0]} of {strict_tot[1]} reliable and flags "
+        f"{strict_tot[2]} of {strict_tot[3]} good readings "
+        f"({100 * strict_tot[2] / strict_tot[3]:.1f} %) against {tun_tot[2]} "
+        f"({100 * tun_tot[2] / tun_tot[3]:.1f} %).  It was not adopted: it would take "
+        f"{tun_tot[0] - strict_tot[0]} misses out of {n_reliable} reliable readings and flag "
+        f"{strict_tot[2] - tun_tot[2]} more good ones.  With 1 % noise the two sides of the "
+        "flag's bar, no miss over 5 % reliable and at most 10 % of the good foods flagged, "
+        "cannot both be held with these diagnostics.  Commands: `python "
+        "benchmarks/validate_estimators.py --set reporting --n 64 --preset precise --noise "
+        "0.01 --noise-draw K --workers 2 --simulations DIR` and the same with `--set tuning "
+        "--n 512 --no-calibration`.\n\n")
+
+
 STIFF_RUNS = ("stiff_precise_noise0", "stiff_precise_noise0.01")
 
 
@@ -802,6 +929,7 @@ def main() -> int:
                      f"{meta['python']}; {_wall(meta)} with {_workers(meta)}.  "
                      f"![errors]({'data/validation/' + stem}_errors.png)\n\n")
     parts.append(larger_draw_section())
+    parts.append(noise_draws_section())
     parts.append(stiff_section())
     held = {preset: cross_validated_runs(stems, PROBE_CALIBRATIONS[preset].form)
             for preset, stems in CROSS_VALIDATED.items() if preset in PROBE_CALIBRATIONS}
