@@ -45,8 +45,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from agents.cli.estimate import adaptive_angle
 from agents.cli.traces import MU_READINGS, estimate_recorded
+from agents.evaluate import StopSignals
 from benchmarks.readme_meta import meta, rewrite_block, write_json
-from benchmarks.validate_estimators import run_streamed, stopped_exit_code
+from benchmarks.validate_estimators import drop_cut_line, run_streamed, stopped_exit_code
 from estimators import load_traces
 from estimators.slip_level import SLIP_FORCES as FORCES
 from fetch_env.controller import FetchAction, FetchSimulator, SimResult
@@ -190,9 +191,10 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--n", type=int, default=64, help="reporting foods (default 64)")
     p.add_argument("--workers", type=int, default=1)
-    p.add_argument("--out", type=Path, default=ROOT / "docs" / "data" / "traces_mu_reading.json",
-                   help="JSON of every reading (default docs/data/traces_mu_reading.json); "
-                   "each food is streamed to the same name with .jsonl as it finishes")
+    p.add_argument("--out", type=Path, required=True,
+                   help="JSON of every reading (the committed run: "
+                   "docs/data/traces_mu_reading.json); each food is streamed to the same "
+                   "name with .jsonl as it finishes")
     p.add_argument("--resume", action="store_true",
                    help="run only the foods not yet in the .jsonl of a stopped run")
     p.add_argument("--docs", action="store_true",
@@ -202,19 +204,20 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--n and --workers must be >= 1, got {args.n} and {args.workers}")
     if args.out.suffix != ".json":
         p.error(f"--out must name a .json file, got {str(args.out)!r}")
-    jsonl = args.out.with_suffix(".jsonl")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    done = finished_foods(jsonl) if args.resume else {}
-    if not args.resume:
-        jsonl.unlink(missing_ok=True)
-    start = time.perf_counter()
     foods = sample_foods(args.n, REPORTING_SEED)
-    entries = [done[f.index] for f in foods if f.index in done]
+    try:
+        done = _open_stream(args.out.with_suffix(".jsonl"), args.resume,
+                            {f.index for f in foods})
+    except OSError as exc:
+        p.error(f"cannot write beside --out {str(args.out)!r}: {exc.strerror or exc}")
+    start = time.perf_counter()
+    entries = list(done.values())
 
     def report(i: int, entry: dict[str, Any]) -> None:
         print(f"[{len(done) + i}/{args.n}] food {entry['food']}"
               + (f" lost: {entry['lost']}" if "lost" in entry else ""), flush=True)
 
+    jsonl = args.out.with_suffix(".jsonl")
     stopped = run_streamed(food_task, [(f,) for f in foods if f.index not in done],
                            args.workers, jsonl, entries, report)
     if stopped:
@@ -223,14 +226,30 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return stopped_exit_code(stopped)
     entries.sort(key=lambda e: e["food"])
+    with StopSignals() as late:  # a stop while the results are written waits for them
+        late.armed = False
+        return _write_outputs(args, entries, time.perf_counter() - start, len(done))
+
+
+def _open_stream(jsonl: Path, resume: bool, indices: set[int]) -> dict[int, dict[str, Any]]:
+    """The foods of this design a stopped run finished (``resume``), with the stream cut
+    back to its last complete line; else an empty stream.  Raises OSError where the folder
+    cannot be written."""
+    jsonl.parent.mkdir(parents=True, exist_ok=True)
+    if not resume:
+        jsonl.unlink(missing_ok=True)
+        return {}
+    drop_cut_line(jsonl)
+    with jsonl.open("a"):  # fails here, before any work, where the file cannot be written
+        pass
+    return {i: e for i, e in finished_foods(jsonl).items() if i in indices}
+
+
+def _write_outputs(args: argparse.Namespace, entries: list[dict[str, Any]], wall: float,
+                   resumed: int) -> int:
+    """Print the table, write the JSON and with ``--docs`` the page's table."""
     records = [r for e in entries for r in e["records"]]
     lost = [f"food {e['food']}: {e['lost']}" for e in entries if "lost" in e]
-    return _write_outputs(args, records, lost, time.perf_counter() - start, len(done))
-
-
-def _write_outputs(args: argparse.Namespace, records: list[dict[str, Any]], lost: list[str],
-                   wall: float, resumed: int) -> int:
-    """Print the table, write the JSON and with ``--docs`` the page's table."""
     rows = summarize(records)
     text = table(rows)
     print(text)
@@ -241,9 +260,11 @@ def _write_outputs(args: argparse.Namespace, records: list[dict[str, Any]], lost
         info["resumed_foods"] = resumed  # wall_s is this sitting's alone
     write_json(args.out, {"meta": info, "summary": rows, "records": records, "lost": lost})
     if args.docs:
+        sitting = (f", this sitting's of a run resumed after {resumed} foods" if resumed
+                   else "")
         footer = (f"{args.n} reporting foods (seed {REPORTING_SEED}); {info['machine']}, "
-                  f"MuJoCo {info['mujoco']}, at {info['commit']}, {info['wall_s']:.0f} s: "
-                  f"`{info['command']}`")
+                  f"MuJoCo {info['mujoco']}, at {info['commit']}, {info['wall_s']:.0f} s"
+                  f"{sitting}: `{info['command']}`")
         rewrite_block(PAGE, BEGIN, END, f"{text}\n\n{footer}")
     return 0
 

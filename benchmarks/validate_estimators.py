@@ -120,8 +120,9 @@ def foods_of(name: str, n: int) -> list[Food]:
     return corner_foods()[:n]
 
 
-# Seeds between one noise draw of a food and the next (a prime larger than 7919 times any
-# food index, so no two (food, draw) pairs share a seed).
+# Seeds between one noise draw of a food and the next: 7919 and 100003 are coprime primes,
+# and two foods' indices differ by less than 100003 (at most 4096 foods) and two draws by
+# less than 7919 (at most 1000), so no two (food, draw) pairs share a seed.
 NOISE_DRAW_STRIDE = 100_003
 
 
@@ -368,8 +369,10 @@ def write_outputs(out: Path, name: str, records: list[dict[str, Any]], meta: dic
         vals += [r.get("reliable", ""), r.get("crash", "")]
         rows.append(",".join(_csv_cell(v) for v in vals))
     _write_atomic(out / f"{name}.csv", "\n".join(rows) + "\n")
+    draw = meta.get("noise_draw", 0)
     title = (f"{meta['set']} set ({meta['n']} foods, seed {meta['seed']}), probes "
-             f"'{meta['preset']}', noise {meta['noise']:g}")
+             f"'{meta['preset']}', noise {meta['noise']:g}"
+             + (f", noise draw {draw}" if draw else ""))
     _write_atomic(out / f"{name}.md", table(summary, title))
     _figure(out / f"{name}_errors.png", records)
     return summary
@@ -653,6 +656,11 @@ def cross_validate(cal_records: list[dict[str, Any]], runs: list[list[dict[str, 
     fold_of = dict(zip(np.random.default_rng(seed).permutation(index),
                        np.arange(len(index)) % folds, strict=True))
     shown = runs if evaluate is None else evaluate
+    for run in evaluate or []:
+        stray = {r["food"]["index"] for r in run if "crash" not in r} - set(fold_of)
+        if stray:
+            raise EstimationError(f"cross_validate: evaluate holds foods {sorted(stray)} "
+                                  "that the calibration's records lack")
     out: list[list[dict[str, Any]]] = [[] for _ in shown]
     for k in range(folds):
         keep = {i for i, f in fold_of.items() if f != k}
@@ -684,6 +692,18 @@ def held_out_record(r: dict[str, Any], model: Calibration) -> dict[str, Any]:
     return rec
 
 
+def drop_cut_line(jsonl: Path) -> None:
+    """Cut a streamed ``.jsonl`` back to its last complete line: a run stopped mid-write
+    leaves a line without its newline, to which the next record appended would be joined
+    (and both lost on the next resume)."""
+    if not jsonl.exists():
+        return
+    text = jsonl.read_bytes()
+    if text and not text.endswith(b"\n"):
+        with jsonl.open("r+b") as f:
+            f.truncate(text.rfind(b"\n") + 1)
+
+
 def _done_indices(jsonl: Path) -> dict[int, dict[str, Any]]:
     if not jsonl.exists():
         return {}
@@ -707,7 +727,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="sensor noise, sd as a share of each trace's peak (default 0)")
     p.add_argument("--noise-draw", type=int, default=0, metavar="K",
                    help="with --noise: the K-th independent draw of each food's noise (default "
-                   "0, the one the tuning and reporting runs use); names the files _drawK")
+                   "0, the one the tuning and reporting runs use); the files are named "
+                   "_drawK unless --name names them")
     p.add_argument("--workers", type=int, default=1,
                    help="processes (default 1); with --ray alone, the local instance's CPUs")
     add_ray_options(p, "foods", batch_default=RAY_BATCH)
@@ -743,6 +764,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.range_only and (args.fit_calibration is None or args.cross_validate
                             or args.form != "linear"):
         p.error("--range-only goes with --fit-calibration, without --cross-validate or --form")
+    if args.noise_draw and (args.fit_calibration is not None or args.calibrate is not None):
+        p.error("--noise-draw chooses the noise of a run to make; it does not go with "
+                "--fit-calibration or --calibrate, which read runs already made")
     if args.fit_calibration is not None:
         return _fit_calibration(args.fit_calibration, args.preset, args.cross_validate,
                                 args.form, args.range_only)
@@ -771,7 +795,9 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     jsonl = args.out / f"{name}.jsonl"
     done = _done_indices(jsonl) if args.resume else {}
-    if not args.resume and jsonl.exists():
+    if args.resume:
+        drop_cut_line(jsonl)
+    elif jsonl.exists():
         jsonl.unlink()
     foods = [f for f in foods_of(args.set, args.n) if f.index not in done]
     seed = {"tuning": TUNING_SEED, "reporting": REPORTING_SEED, "stiff": REPORTING_SEED + 1,

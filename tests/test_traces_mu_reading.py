@@ -83,8 +83,8 @@ def _fake_pool(stop_after: int | None) -> Any:
     slide), streaming each as the real pool does, and stops after ``stop_after`` of them."""
     def run(fn: Any, tasks: list[tuple[Any, ...]], workers: int, jsonl: Path,
             entries: list[dict[str, Any]], report: Any) -> str:
-        with jsonl.open("a") as log:
-            for i, (food,) in enumerate(tasks):
+        with jsonl.open("a") as log:  # last food first: the JSON must be in food order
+            for i, (food,) in enumerate(reversed(tasks)):
                 if stop_after is not None and i == stop_after:
                     return "interrupted (SIGTERM)"
                 entry = {"food": food.index, "records": [
@@ -107,9 +107,11 @@ def test_a_stopped_run_keeps_its_foods_and_resume_finishes_them(
     monkeypatch.setattr(bench, "run_streamed", _fake_pool(stop_after=2))
     assert bench.main(["--n", "5", "--out", str(out)]) == 143
     assert not out.exists()
-    assert sorted(finished_foods(out.with_suffix(".jsonl"))) == [0, 1]
+    assert sorted(finished_foods(out.with_suffix(".jsonl"))) == [3, 4]
     err = capsys.readouterr().err.strip()
     assert err.startswith("traces_mu_reading: interrupted (SIGTERM); 2 of 5 foods finished")
+    with out.with_suffix(".jsonl").open("a") as log:  # a stop in mid-line
+        log.write('{"food": 2, "rec')
     asked: list[int] = []
 
     def resumed(fn: Any, tasks: list[tuple[Any, ...]], *rest: Any) -> str:
@@ -118,7 +120,7 @@ def test_a_stopped_run_keeps_its_foods_and_resume_finishes_them(
 
     monkeypatch.setattr(bench, "run_streamed", resumed)
     assert bench.main(["--n", "5", "--out", str(out), "--resume"]) == 0
-    assert asked == [2, 3, 4]
+    assert sorted(asked) == [0, 1, 2]
     written = json.loads(out.read_text())
     assert [r["food"] for r in written["records"]] == [i for i in range(5) for _ in NOISES]
     assert written["meta"]["resumed_foods"] == 2 and not written["lost"]
@@ -139,7 +141,9 @@ def test_a_food_whose_readings_raise_is_kept_as_lost(monkeypatch: pytest.MonkeyP
     assert food_task(food) == {"food": 0, "records": [], "lost": "ValueError: bad slide"}
 
 
-@pytest.mark.parametrize("argv", [["--n", "0"], ["--workers", "0"], ["--out", "x.csv"]])
+@pytest.mark.parametrize("argv", [["--n", "0", "--out", "x.json"],
+                                  ["--workers", "0", "--out", "x.json"], ["--out", "x.csv"],
+                                  [], ["--out", "/proc/no/such/mu.json"]])
 def test_bad_options_are_refused_before_any_work(
         argv: list[str], monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(bench, "run_streamed", lambda *a: pytest.fail("ran"))

@@ -272,3 +272,51 @@ def test_the_page_shows_the_noise_draws_as_the_committed_runs_give_them() -> Non
     assert section and "| 512 tuning, held out | all | 7 of 105 / 169 of 1589 (10.6 %)" in section
     page = (path.parents[1] / "docs" / "estimator_validation.md").read_text()
     assert section in page
+
+
+@pytest.mark.parametrize("argv", [
+    ["--noise-draw", "1"], ["--noise", "0.01", "--noise-draw", "-1"],
+    ["--noise", "0.01", "--noise-draw", "1001"],
+    ["--noise-draw", "2", "--fit-calibration", "run.json"],
+    ["--noise-draw", "2", "--calibrate", "run.json"]])
+def test_a_noise_draw_it_cannot_use_is_refused(
+        argv: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--noise-draw goes with --noise > 0, lies in [0, 1000] and makes a run (not with
+    --fit-calibration or --calibrate): refused in one line with exit 2 before any work."""
+    from benchmarks import validate_estimators
+    with pytest.raises(SystemExit) as exc:
+        validate_estimators.main([*argv, "--n", "1", "--out", str(tmp_path)])
+    assert exc.value.code == 2
+    assert "--noise-draw" in capsys.readouterr().err.strip().splitlines()[-1]
+    assert not list(tmp_path.iterdir())
+
+
+def test_the_noise_draw_reaches_each_foods_noise_seed(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The tasks a run with --noise-draw 3 hands its pool carry each food's draw-3 seed, and
+    its files are named _draw3."""
+    from benchmarks import validate_estimators as ve
+    seen: list[tuple[object, ...]] = []
+
+    def pool(fn: object, tasks: list[tuple[object, ...]], *rest: object) -> str:
+        seen.extend(tasks)
+        return "interrupted (SIGTERM)"
+
+    monkeypatch.setattr(ve, "run_streamed", pool)
+    code = ve.main(["--set", "reporting", "--n", "3", "--noise", "0.01", "--noise-draw", "3",
+                    "--out", str(tmp_path)])
+    assert code == 143
+    foods = foods_of("reporting", 3)
+    assert [t[3] for t in seen] == [food_seed(f, 3) for f in foods]
+    assert str(tmp_path / "reporting_precise_noise0.01_draw3.jsonl") in capsys.readouterr().err
+
+
+def test_a_resumed_stream_drops_a_line_cut_short(tmp_path: Path) -> None:
+    from benchmarks.validate_estimators import drop_cut_line
+    jsonl = tmp_path / "run.jsonl"
+    jsonl.write_text('{"food": {"index": 0}}\n{"food": {"ind')
+    drop_cut_line(jsonl)
+    assert jsonl.read_text() == '{"food": {"index": 0}}\n'
+    drop_cut_line(jsonl)  # a complete file is left as it is
+    assert jsonl.read_text() == '{"food": {"index": 0}}\n'
