@@ -31,7 +31,6 @@ Run: python benchmarks/traces_mu_reading.py --n 64 --workers 2 \\
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import tempfile
@@ -47,7 +46,12 @@ from agents.cli.estimate import adaptive_angle
 from agents.cli.traces import MU_READINGS, estimate_recorded
 from agents.evaluate import StopSignals
 from benchmarks.readme_meta import meta, rewrite_block, write_json
-from benchmarks.validate_estimators import drop_cut_line, run_streamed, stopped_exit_code
+from benchmarks.validate_estimators import (
+    drop_cut_line,
+    run_streamed,
+    stopped_exit_code,
+    streamed_lines,
+)
 from estimators import load_traces
 from estimators.slip_level import SLIP_FORCES as FORCES
 from fetch_env.controller import FetchAction, FetchSimulator, SimResult
@@ -138,15 +142,7 @@ def food_task(food: Food) -> dict[str, Any]:
 def finished_foods(jsonl: Path) -> dict[int, dict[str, Any]]:
     """The foods a stopped run's ``.jsonl`` holds, by index (a line cut short by the stop is
     left out, so that food runs again)."""
-    done: dict[int, dict[str, Any]] = {}
-    if jsonl.exists():
-        for line in jsonl.read_text().splitlines():
-            try:
-                entry = json.loads(line)
-            except json.JSONDecodeError:
-                continue
-            done[int(entry["food"])] = entry
-    return done
+    return {int(entry["food"]): entry for entry in streamed_lines(jsonl)}
 
 
 def summarize(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -205,9 +201,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.out.suffix != ".json":
         p.error(f"--out must name a .json file, got {str(args.out)!r}")
     foods = sample_foods(args.n, REPORTING_SEED)
+    jsonl = args.out.with_suffix(".jsonl")
     try:
-        done = _open_stream(args.out.with_suffix(".jsonl"), args.resume,
-                            {f.index for f in foods})
+        done = _open_stream(jsonl, args.resume, {f.index for f in foods})
     except OSError as exc:
         p.error(f"cannot write beside --out {str(args.out)!r}: {exc.strerror or exc}")
     start = time.perf_counter()
@@ -217,7 +213,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"[{len(done) + i}/{args.n}] food {entry['food']}"
               + (f" lost: {entry['lost']}" if "lost" in entry else ""), flush=True)
 
-    jsonl = args.out.with_suffix(".jsonl")
     stopped = run_streamed(food_task, [(f,) for f in foods if f.index not in done],
                            args.workers, jsonl, entries, report)
     if stopped:

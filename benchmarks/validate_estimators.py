@@ -704,17 +704,22 @@ def drop_cut_line(jsonl: Path) -> None:
             f.truncate(text.rfind(b"\n") + 1)
 
 
-def _done_indices(jsonl: Path) -> dict[int, dict[str, Any]]:
+def streamed_lines(jsonl: Path) -> list[dict[str, Any]]:
+    """The records a streamed ``.jsonl`` holds, in order (a line cut short by a stopped run
+    is left out, so that its task runs again; none where the file is missing)."""
     if not jsonl.exists():
-        return {}
-    done = {}
+        return []
+    out = []
     for line in jsonl.read_text().splitlines():
         try:
-            rec = json.loads(line)
+            out.append(json.loads(line))
         except json.JSONDecodeError:
-            continue  # a line cut short by a stopped run: that food runs again
-        done[int(rec["food"]["index"])] = rec
-    return done
+            continue
+    return out
+
+
+def _done_indices(jsonl: Path) -> dict[int, dict[str, Any]]:
+    return {int(rec["food"]["index"]): rec for rec in streamed_lines(jsonl)}
 
 
 def main(argv: list[str] | None = None) -> int:
